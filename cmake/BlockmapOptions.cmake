@@ -1,0 +1,23 @@
+# Build options, one place. Presets (CMakePresets.json) set these; the defaults build a plain
+# host tree with tests.
+option(BLOCKMAP_BUILD_TESTS "Build the test tiers (unit, memory, build rules)" ON)
+option(BLOCKMAP_BUILD_BENCHMARKS "Build Google Benchmark programs (host only)" OFF)
+option(BLOCKMAP_SANITIZE "Build with AddressSanitizer and UndefinedBehaviorSanitizer" OFF)
+option(BLOCKMAP_USE_CCACHE "Use ccache as the compiler launcher when it is installed" ON)
+set(BLOCKMAP_HOST_LABEL "host" CACHE STRING "ctest label of tests built for the host")
+set(BLOCKMAP_TARGET_LABEL "${CMAKE_SYSTEM_PROCESSOR}" CACHE STRING
+    "ctest label of tests built for a cross target (set by the toolchain file)")
+
+if(BLOCKMAP_USE_CCACHE)
+  find_program(BLOCKMAP_CCACHE ccache)
+  if(BLOCKMAP_CCACHE)
+    set(CMAKE_CXX_COMPILER_LAUNCHER "${BLOCKMAP_CCACHE}")
+  endif()
+endif()
+
+if(BLOCKMAP_SANITIZE)
+  # Applied to every target so that the instrumented allocator sees the whole program.
+  add_compile_options(-fsanitize=address,undefined -fno-omit-frame-pointer
+                      -fno-sanitize-recover=all)
+  add_link_options(-fsanitize=address,undefined)
+endif()

@@ -1,0 +1,75 @@
+#include "cli.hpp"
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include "blockmap_build_info.hpp"
+#include "commands/commands.hpp"
+
+namespace blockmap::cli {
+namespace {
+
+std::string make_version_line() {
+  return std::string("blockmap ") + build_info::kVersion + " (" + build_info::kTargetProcessor +
+         " " + build_info::kTargetSystem + ", " + build_info::kCompiler + ", " +
+         build_info::kBuildType + (build_info::kSanitized ? ", ASan+UBSan" : "") + ")";
+}
+
+// A parse error as one line: the reason, and where to look.
+void print_usage_error(std::ostream& err, const CLI::Error& error) {
+  std::string reason = error.what();
+  std::replace(reason.begin(), reason.end(), '\n', ' ');
+  err << "blockmap: " << reason << " (see 'blockmap --help')\n";
+}
+
+}  // namespace
+
+const char* version_line() {
+  static const std::string line = make_version_line();
+  return line.c_str();
+}
+
+int run(int argc, const char* const* argv, std::ostream& out, std::ostream& err) {
+  CLI::App app{
+      "blockmap: an onboard, streaming geometric 3D mapper for mobile robots.\n"
+      "Turns odometry, IMU, GPS and laser streams into walls, roofs and buildings.",
+      "blockmap"};
+  app.set_version_flag("--version", version_line(), "Print the version and build, then exit");
+  app.require_subcommand(1, 1);
+  app.fallthrough(false);
+
+  const std::vector<Command> commands = {add_info_command(app)};
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& help) {
+    return app.exit(help, out, err);
+  } catch (const CLI::CallForAllHelp& help) {
+    return app.exit(help, out, err);
+  } catch (const CLI::CallForVersion&) {
+    out << version_line() << '\n';
+    return kExitOk;
+  } catch (const CLI::ParseError& error) {
+    // CLI11 reports a misspelt subcommand as a missing one; name the word the user typed.
+    const std::vector<std::string> unparsed = app.remaining();
+    if (app.get_subcommands().empty() && !unparsed.empty() && unparsed.front().front() != '-') {
+      err << "blockmap: unknown subcommand '" << unparsed.front() << "' (see 'blockmap --help')\n";
+    } else {
+      print_usage_error(err, error);
+    }
+    return kExitUsage;
+  }
+
+  for (const Command& command : commands) {
+    if (command.subcommand->parsed()) {
+      return command.action(out, err);
+    }
+  }
+  err << "blockmap: no subcommand ran (see 'blockmap --help')\n";
+  return kExitUsage;
+}
+
+}  // namespace blockmap::cli

@@ -1,0 +1,25 @@
+// Each subcommand registers itself on the application: its options, and the function that runs
+// it after parsing. Only subcommands that really work are registered.
+#pragma once
+
+#include <functional>
+#include <iosfwd>
+
+namespace CLI {
+class App;
+}
+
+namespace blockmap::cli {
+
+// Runs the parsed subcommand; returns its exit status.
+using CommandAction = std::function<int(std::ostream& out, std::ostream& err)>;
+
+struct Command {
+  CLI::App* subcommand;  // owned by the parent application
+  CommandAction action;
+};
+
+// `blockmap info`: what this binary is and what the machine under it offers.
+Command add_info_command(CLI::App& app);
+
+}  // namespace blockmap::cli
