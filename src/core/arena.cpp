@@ -38,7 +38,7 @@ void* Arena::try_allocate(std::size_t bytes, std::size_t alignment, const char* 
   const auto base_address = reinterpret_cast<std::uintptr_t>(base_);
   const std::uintptr_t unaligned = base_address + used_bytes_;
   const std::uintptr_t aligned = (unaligned + (alignment - 1)) & ~(std::uintptr_t{alignment} - 1);
-  const std::size_t padding = static_cast<std::size_t>(aligned - unaligned);
+  const auto padding = static_cast<std::size_t>(aligned - unaligned);
   if (padding > remaining_bytes() || bytes > remaining_bytes() - padding) {
     failed_.increment();
     return nullptr;

@@ -85,7 +85,9 @@ void escape(const void* pointer) noexcept {
 // ---------------------------------------------------------------------------------------------
 // Interposition on glibc: the executable's definitions take precedence over libc.so's, and the
 // __libc_* entry points reach glibc's allocator itself. free() is not replaced: the memory
-// comes from the same allocator.
+// comes from the same allocator. Interposing means using glibc's reserved names and keeping the
+// prototypes' own shapes, hence the NOLINT.
+// NOLINTBEGIN(bugprone-reserved-identifier,readability-inconsistent-declaration-parameter-name)
 extern "C" {
 void* __libc_malloc(std::size_t size);
 void* __libc_calloc(std::size_t count, std::size_t size);
@@ -125,6 +127,7 @@ int posix_memalign(void** out, std::size_t alignment, std::size_t size) noexcept
   return 0;
 }
 }  // extern "C"
+// NOLINTEND(bugprone-reserved-identifier,readability-inconsistent-declaration-parameter-name)
 
 // ---------------------------------------------------------------------------------------------
 // Replaceable global allocation functions ([new.delete]). The counted malloc above serves them,

@@ -44,7 +44,7 @@ TEST(PrimitivesBudget, RingBufferSteadyStateIncludingOverflow) {
 }
 
 TEST(PrimitivesBudget, ArenaBackedRingAfterInit) {
-  Arena arena(64 * 1024);
+  Arena arena(std::size_t{64} * 1024);
   RingBufferRef<Message> ring(arena, 32, "scan history");
   arena.seal();
   Message message;
@@ -73,6 +73,8 @@ TEST(PrimitivesBudget, SpscQueueBetweenTwoThreads) {
     while (received.load(std::memory_order_relaxed) < kMessages) {
       if (queue.try_pop(message)) {
         received.fetch_add(1, std::memory_order_relaxed);
+      } else {
+        std::this_thread::yield();  // both cores may be busy with other tests
       }
     }
   });
@@ -88,6 +90,8 @@ TEST(PrimitivesBudget, SpscQueueBetweenTwoThreads) {
       message.stamp_ns = sent;
       if (queue.try_push(message)) {
         ++sent;
+      } else {
+        std::this_thread::yield();
       }
     }
     while (received.load(std::memory_order_relaxed) < kMessages) {
@@ -121,7 +125,7 @@ TEST(PrimitivesBudget, ArenaServesInitWithoutTouchingTheHeap) {
   Arena arena(1 << 20);  // the one heap allocation
   EXPECT_NO_ALLOCATIONS({
     auto voxels = arena.allocate_array<float>(10'000, "voxel window");
-    auto particles = arena.allocate_array<double>(3 * 1'000, "particle filter");
+    auto particles = arena.allocate_array<double>(std::size_t{3} * 1'000, "particle filter");
     RingBufferRef<Message> scans(arena, 8, "scan queue");
     FixedPoolRef<Message> patches(arena, 16, "plane patches");
     testing::escape(voxels.data());

@@ -76,7 +76,7 @@ class Arena {
 
   // The memory report: owners in order of their first allocation.
   [[nodiscard]] std::span<const OwnerBytes> owners() const noexcept {
-    return std::span<const OwnerBytes>(ledger_.data(), owner_count_);
+    return {ledger_.data(), owner_count_};
   }
 
   // The block it serves plus its own bookkeeping.

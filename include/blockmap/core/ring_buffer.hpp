@@ -120,8 +120,8 @@ class RingBufferRef {
     --size_;
   }
 
-  T* data_;
-  std::size_t capacity_;
+  T* data_ = nullptr;
+  std::size_t capacity_ = 0;
   std::size_t head_ = 0;
   std::size_t size_ = 0;
   MonotonicCounter rejected_newest_;

@@ -95,8 +95,8 @@ class SpscQueueRef {
     return index + 1 == slot_count_ ? 0 : index + 1;
   }
 
-  T* const slots_;
-  const std::size_t slot_count_;
+  T* const slots_ = nullptr;
+  const std::size_t slot_count_ = 0;
   // Consumer-owned line: where the consumer reads next, and its copy of the producer's index.
   alignas(kCacheLineBytes) std::atomic<std::size_t> head_{0};
   std::size_t consumer_cached_tail_ = 0;
