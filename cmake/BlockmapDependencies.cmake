@@ -1,21 +1,30 @@
 # Third-party dependencies, all from Debian's archive (scripts/install-deps installs them).
 #   Eigen 3      the core's only library (header-only, so one copy serves every architecture)
 #   CLI11        command-line parsing in firmware_host (header-only)
+#   nlohmann     JSON output of firmware_host and golden files in tests (header-only)
 #   GoogleTest   the test tiers: the host package, or built from /usr/src/googletest with the
 #                cross compiler when cross-compiling
 #   benchmark    Google Benchmark, host builds with BLOCKMAP_BUILD_BENCHMARKS only
 find_package(Eigen3 3.3 REQUIRED NO_MODULE)
 find_package(CLI11 2.1 REQUIRED)
-if(CMAKE_CROSSCOMPILING)
-  # CLI11's package points at /usr/include, which would put the host's C library headers in
-  # front of the cross compiler. Expose only its CLI/ folder, through a link in the build tree.
-  get_target_property(cli11_dirs CLI11::CLI11 INTERFACE_INCLUDE_DIRECTORIES)
-  list(GET cli11_dirs 0 cli11_dir)
-  file(MAKE_DIRECTORY ${CMAKE_BINARY_DIR}/_cli11)
-  file(CREATE_LINK ${cli11_dir}/CLI ${CMAKE_BINARY_DIR}/_cli11/CLI SYMBOLIC)
-  set_target_properties(CLI11::CLI11 PROPERTIES
-      INTERFACE_INCLUDE_DIRECTORIES ${CMAKE_BINARY_DIR}/_cli11)
-endif()
+find_package(nlohmann_json 3.10 REQUIRED)
+
+# Header-only packages whose CMake files point at /usr/include would put the host's C library
+# headers in front of a cross compiler's. In cross builds, expose only the package's own
+# folder, through a link in the build tree.
+function(blockmap_isolate_header_package target folder)
+  if(NOT CMAKE_CROSSCOMPILING)
+    return()
+  endif()
+  get_target_property(dirs ${target} INTERFACE_INCLUDE_DIRECTORIES)
+  list(GET dirs 0 dir)
+  set(isolated ${CMAKE_BINARY_DIR}/_isolated/${folder})
+  file(MAKE_DIRECTORY ${isolated})
+  file(CREATE_LINK ${dir}/${folder} ${isolated}/${folder} SYMBOLIC)
+  set_target_properties(${target} PROPERTIES INTERFACE_INCLUDE_DIRECTORIES ${isolated})
+endfunction()
+blockmap_isolate_header_package(CLI11::CLI11 CLI)
+blockmap_isolate_header_package(nlohmann_json::nlohmann_json nlohmann)
 
 if(BLOCKMAP_BUILD_TESTS)
   if(CMAKE_CROSSCOMPILING)

@@ -22,4 +22,7 @@ struct Command {
 // `blockmap info`: what this binary is and what the machine under it offers.
 Command add_info_command(CLI::App& app);
 
+// `blockmap decode PROTOCOL FILE`: a raw capture as JSON Lines.
+Command add_decode_command(CLI::App& app);
+
 }  // namespace blockmap::cli

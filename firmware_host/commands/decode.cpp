@@ -1,0 +1,98 @@
+// `blockmap decode PROTOCOL FILE`: decoded messages of a raw capture, one JSON object a line
+// (docs/ARCHITECTURE.md 4.3; 4.6 fixes the NMEA keys). Decoding errors are reported in line
+// and decoding goes on; a summary of what was dropped, and why, goes to stderr.
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <iterator>
+#include <memory>
+#include <ostream>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "cli.hpp"
+#include "commands/commands.hpp"
+#include "commands/decoders.hpp"
+
+namespace blockmap::cli {
+namespace {
+
+struct DecoderEntry {
+  const char* name;
+  const char* description;
+  DecoderFunction decode;
+};
+
+constexpr DecoderEntry kDecoders[] = {
+    {"nmea", "NMEA 0183 byte stream from a GNSS receiver", &decode_nmea},
+};
+
+// Reads a whole capture ("-" is standard input). Offline decoding may allocate: it is not the
+// onboard runtime.
+bool read_capture(Capture& capture, std::ostream& err) {
+  if (capture.path == "-") {
+    capture.bytes.assign(std::istreambuf_iterator<char>(std::cin),
+                         std::istreambuf_iterator<char>());
+    return true;
+  }
+  std::ifstream file(capture.path, std::ios::binary);
+  if (!file) {
+    err << "blockmap: cannot open '" << capture.path << "'\n";
+    return false;
+  }
+  capture.bytes.assign(std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>());
+  return true;
+}
+
+}  // namespace
+
+LineIndex::LineIndex(const std::vector<std::uint8_t>& bytes) {
+  for (std::size_t i = 0; i < bytes.size(); ++i) {
+    if (bytes[i] == '\n') {
+      newlines_.push_back(i);
+    }
+  }
+}
+
+std::size_t LineIndex::line_of(std::uint64_t offset) const {
+  return 1 + static_cast<std::size_t>(std::lower_bound(newlines_.begin(), newlines_.end(), offset) -
+                                      newlines_.begin());
+}
+
+Json rounded(double value, int decimals) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.*f", decimals, value);
+  return std::strtod(text, nullptr);
+}
+
+Command add_decode_command(CLI::App& app) {
+  CLI::App* decode = app.add_subcommand(
+      "decode", "Decode a raw device capture into JSON Lines (one message a line)");
+  auto protocol = std::make_shared<std::string>();
+  auto capture = std::make_shared<Capture>();
+  std::vector<std::string> names;
+  std::string help = "the device protocol:";
+  for (const DecoderEntry& entry : kDecoders) {
+    names.emplace_back(entry.name);
+    help += std::string("\n  ") + entry.name + ": " + entry.description;
+  }
+  decode->add_option("protocol", *protocol, help)->required()->check(CLI::IsMember(names));
+  decode->add_option("file", capture->path, "the capture; - reads standard input")->required();
+  return {decode, [protocol, capture](std::ostream& out, std::ostream& err) {
+            if (!read_capture(*capture, err)) {
+              return kExitFailure;
+            }
+            for (const DecoderEntry& entry : kDecoders) {
+              if (*protocol == entry.name) {
+                return entry.decode(*capture, out, err);
+              }
+            }
+            return kExitUsage;  // unreachable: CLI11 checked the name
+          }};
+}
+
+}  // namespace blockmap::cli

@@ -1,0 +1,41 @@
+// The protocol decoders behind `blockmap decode`: each turns a whole capture into JSON Lines on
+// `out` (one message a line, decoding errors as {"error": ..., "line"/"offset": ...} lines) and
+// prints a one-line summary of what it dropped, and why, on `err`. Adding a protocol is a file
+// decode_<name>.cpp and one entry in kDecoders (decode.cpp).
+#pragma once
+
+#include <cstdint>
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace blockmap::cli {
+
+using Json = nlohmann::ordered_json;
+
+struct Capture {
+  std::string path;
+  std::vector<std::uint8_t> bytes;
+};
+
+using DecoderFunction = int (*)(const Capture& capture, std::ostream& out, std::ostream& err);
+
+int decode_nmea(const Capture& capture, std::ostream& out, std::ostream& err);
+
+// 1-based line of a byte offset, for error reports that point into a text capture.
+class LineIndex {
+ public:
+  explicit LineIndex(const std::vector<std::uint8_t>& bytes);
+  [[nodiscard]] std::size_t line_of(std::uint64_t offset) const;
+
+ private:
+  std::vector<std::size_t> newlines_;
+};
+
+// `value` with `decimals` decimals: the nearest double to that decimal, which JSON then prints
+// in its shortest form (41.574970205, not 41.574970204999998).
+Json rounded(double value, int decimals);
+
+}  // namespace blockmap::cli
