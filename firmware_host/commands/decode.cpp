@@ -29,6 +29,7 @@ struct DecoderEntry {
 
 constexpr DecoderEntry kDecoders[] = {
     {"nmea", "NMEA 0183 byte stream from a GNSS receiver", &decode_nmea},
+    {"rmp", "Segway RMP CAN log (candump format, or id:XXXX byte lines)", &decode_rmp},
 };
 
 // Reads a whole capture ("-" is standard input). Offline decoding may allocate: it is not the

@@ -23,6 +23,7 @@ struct Capture {
 using DecoderFunction = int (*)(const Capture& capture, std::ostream& out, std::ostream& err);
 
 int decode_nmea(const Capture& capture, std::ostream& out, std::ostream& err);
+int decode_rmp(const Capture& capture, std::ostream& out, std::ostream& err);
 
 // 1-based line of a byte offset, for error reports that point into a text capture.
 class LineIndex {
