@@ -3,6 +3,7 @@
 option(BLOCKMAP_BUILD_TESTS "Build the test tiers (unit, memory, build rules)" ON)
 option(BLOCKMAP_BUILD_BENCHMARKS "Build Google Benchmark programs (host only)" OFF)
 option(BLOCKMAP_SANITIZE "Build with AddressSanitizer and UndefinedBehaviorSanitizer" OFF)
+option(BLOCKMAP_BUILD_FUZZERS "Build libFuzzer targets for the protocol codecs (clang only)" OFF)
 option(BLOCKMAP_USE_CCACHE "Use ccache as the compiler launcher when it is installed" ON)
 set(BLOCKMAP_HOST_LABEL "host" CACHE STRING "ctest label of tests built for the host")
 set(BLOCKMAP_TARGET_LABEL "${CMAKE_SYSTEM_PROCESSOR}" CACHE STRING
@@ -13,6 +14,14 @@ if(BLOCKMAP_USE_CCACHE)
   if(BLOCKMAP_CCACHE)
     set(CMAKE_CXX_COMPILER_LAUNCHER "${BLOCKMAP_CCACHE}")
   endif()
+endif()
+
+if(BLOCKMAP_BUILD_FUZZERS)
+  if(NOT CMAKE_CXX_COMPILER_ID STREQUAL "Clang")
+    message(FATAL_ERROR "BLOCKMAP_BUILD_FUZZERS needs clang (libFuzzer); use the fuzz preset")
+  endif()
+  # Coverage instrumentation everywhere; the fuzz targets link libFuzzer's main.
+  add_compile_options(-fsanitize=fuzzer-no-link)
 endif()
 
 if(BLOCKMAP_SANITIZE)

@@ -2,6 +2,7 @@
 
 #include <charconv>
 #include <cstdio>
+#include <limits>
 
 namespace blockmap::hal::protocol::candump {
 namespace {
@@ -47,8 +48,9 @@ bool parse_timestamp(std::string_view text, TimestampNs& stamp_ns) noexcept {
   const auto [end_us, error_us] =
       std::from_chars(text.data() + point + 1, text.data() + text.size(), microseconds);
   if (error_s != std::errc() || end_s != text.data() + point || error_us != std::errc() ||
-      end_us != text.data() + text.size() || seconds < 0) {
-    return false;
+      end_us != text.data() + text.size() || seconds < 0 || microseconds < 0 ||
+      seconds > std::numeric_limits<TimestampNs>::max() / kNanosecondsPerSecond - 1) {
+    return false;  // found by fuzz_rmp: a huge second count overflowed the ns stamp
   }
   stamp_ns = seconds * kNanosecondsPerSecond + microseconds * 1000;
   return true;
@@ -128,6 +130,11 @@ ParseError parse_line(std::string_view line, Record& record) noexcept {
   const std::size_t space = rest.find(' ');
   if (space == std::string_view::npos || space == 0 || space >= record.interface.size()) {
     return ParseError::kBadInterface;
+  }
+  for (char c : rest.substr(0, space)) {
+    if (c < 0x21 || c > 0x7E) {  // found by fuzz_rmp: a NUL in the name broke the round trip
+      return ParseError::kBadInterface;
+    }
   }
   record.interface = {};
   rest.copy(record.interface.data(), space);

@@ -223,10 +223,12 @@ bool parse_letter(std::string_view text, char& letter) noexcept {
 
 bool parse_gga(const Fields& f, msg::GpsFix& fix) noexcept {
   std::uint8_t quality = 0;
-  return parse_time(f[1], fix.has_time, fix.utc_milliseconds_of_day) && parse_position(f, 2, fix) &&
-         optional_integer(f[6], fix.has_quality, quality) && quality <= 8 &&
-         (fix.quality = static_cast<msg::GpsFixQuality>(quality), true) &&
-         optional_integer(f[7], fix.has_satellites, fix.satellites_used) &&
+  if (!parse_time(f[1], fix.has_time, fix.utc_milliseconds_of_day) || !parse_position(f, 2, fix) ||
+      !optional_integer(f[6], fix.has_quality, quality) || quality > 8) {
+    return false;
+  }
+  fix.quality = static_cast<msg::GpsFixQuality>(quality);
+  return optional_integer(f[7], fix.has_satellites, fix.satellites_used) &&
          optional_decimal(f[8], fix.has_hdop, fix.hdop) &&
          optional_decimal(f[9], fix.has_altitude, fix.altitude_msl_m) &&
          optional_decimal(f[11], fix.has_geoid_separation, fix.geoid_separation_m);

@@ -262,7 +262,13 @@ TEST(Candump, RejectsMalformedLinesWithAReason) {
   EXPECT_EQ(candump::parse_line("# comment", record), candump::ParseError::kNotAFrame);
   EXPECT_EQ(candump::parse_line("1.0 can0 401#00", record), candump::ParseError::kBadTimestamp);
   EXPECT_EQ(candump::parse_line("(1.5) can0 401#00", record), candump::ParseError::kBadTimestamp);
+  EXPECT_EQ(candump::parse_line("(14365436509052.000000) can0 401#00", record),
+            candump::ParseError::kBadTimestamp);
+  EXPECT_EQ(candump::parse_line("(1.-00001) can0 401#00", record),
+            candump::ParseError::kBadTimestamp);
   EXPECT_EQ(candump::parse_line("(1.000000) 401#00", record), candump::ParseError::kBadInterface);
+  EXPECT_EQ(candump::parse_line(std::string_view("(1.000000) ca\0n 401#00", 22), record),
+            candump::ParseError::kBadInterface);
   EXPECT_EQ(candump::parse_line("(1.000000) can0 801#00", record),
             candump::ParseError::kBadIdentifier);
   EXPECT_EQ(candump::parse_line("(1.000000) can0 40#00", record),

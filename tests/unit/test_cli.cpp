@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "test_data.hpp"
+
 namespace blockmap::cli {
 namespace {
 
@@ -72,6 +74,47 @@ TEST(Cli, InfoDescribesTheBuild) {
   EXPECT_EQ(result.status, kExitOk);
   EXPECT_NE(result.out.find("pointer_bits: "), std::string::npos);
   EXPECT_NE(result.out.find("lock_free_64bit_counters: yes"), std::string::npos);
+}
+
+TEST(Cli, DecodeNmeaWritesOneObjectPerPositionSentence) {
+  const std::string log = blockmap::testing::project_data("nmea/gpsd_mtk-3329.log").string();
+  const Result result = run_cli({"decode", "nmea", log.c_str()});
+  EXPECT_EQ(result.status, kExitOk);
+  EXPECT_EQ(result.out.rfind("{\"sentence\":\"RMC\",\"talker\":\"GP\",\"time\":\"10:21:27.000\","
+                             "\"date\":\"2011-02-21\",\"lat\":51.484371667,\"lon\":6.538185,",
+                             0),
+            0u)
+      << result.out.substr(0, 200);
+  EXPECT_EQ(count_lines(result.out), 9u) << "its RMC and GGA sentences";
+  EXPECT_NE(result.err.find("nmea: 26 sentences decoded"), std::string::npos) << result.err;
+}
+
+TEST(Cli, DecodeReportsBadSentencesInLineAndGoesOn) {
+  const std::string log = blockmap::testing::project_data("nmea/gpsd_garmin48.log").string();
+  const Result result = run_cli({"decode", "nmea", log.c_str()});
+  EXPECT_EQ(result.status, kExitOk);
+  EXPECT_NE(result.out.find("{\"error\":\"bad_checksum\",\"line\":84}"), std::string::npos);
+  EXPECT_GT(result.out.find("{\"error\""), result.out.find("\"sentence\""));
+  EXPECT_GT(result.out.rfind("\"sentence\""), result.out.find("{\"error\""));
+}
+
+TEST(Cli, DecodeRmpReadsCandumpAndOrcaLines) {
+  const std::string log =
+      blockmap::testing::project_data("segway_rmp/libsegwayrmp_unit_test_frames.txt").string();
+  const Result result = run_cli({"decode", "rmp", log.c_str()});
+  EXPECT_EQ(result.status, kExitOk);
+  EXPECT_EQ(count_lines(result.out), 6u);
+  EXPECT_NE(result.out.find("\"id\":\"0x406\",\"operational_mode\":1,\"gain_schedule\":0,"
+                            "\"ui_battery_v\":9.325,\"powerbase_battery_v\":78.0"),
+            std::string::npos)
+      << result.out;
+}
+
+TEST(Cli, DecodeNeedsAKnownProtocolAndAReadableFile) {
+  EXPECT_EQ(run_cli({"decode", "morse", "x"}).status, kExitUsage);
+  const Result missing = run_cli({"decode", "nmea", "/nonexistent/capture.nmea"});
+  EXPECT_EQ(missing.status, kExitFailure);
+  EXPECT_EQ(count_lines(missing.err), 1u);
 }
 
 TEST(Cli, InfoRejectsStrayArguments) {
