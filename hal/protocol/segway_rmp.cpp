@@ -77,6 +77,8 @@ const char* to_string(DropReason reason) noexcept {
       return "foreign_id";
     case DropReason::kIncompleteCycle:
       return "incomplete_cycle";
+    case DropReason::kDuplicate:
+      return "duplicate";
     case DropReason::kCount:
       break;
   }
@@ -114,8 +116,14 @@ Decoder::Step Decoder::push(const CanFrame& frame, TimestampNs rx_stamp_ns) {
     return step;
   }
 
-  step.kind = FrameKind::kStatus;
   const auto index = static_cast<std::uint8_t>(frame.id - kStatusFirstId);
+  if (index == last_index_) {  // a retransmitted frame: the group already has it
+    drops_.count(DropReason::kDuplicate);
+    step.reason = DropReason::kDuplicate;
+    return step;  // kIgnored
+  }
+  last_index_ = index;
+  step.kind = FrameKind::kStatus;
   if (index == 0 || seen_mask_ == 0) {  // a new group starts
     seen_mask_ = 0;
     cycle_stamp_ns_ = rx_stamp_ns;

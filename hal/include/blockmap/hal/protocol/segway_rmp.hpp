@@ -42,6 +42,7 @@ enum class DropReason : std::uint8_t {
   kNotStandard,      // extended, remote or error frame on the RMP's bus
   kForeignId,        // a frame of another node (UI heartbeat, 0x412 from the UI, ...)
   kIncompleteCycle,  // 0x407 arrived but frames of the group were missing (lost on the bus)
+  kDuplicate,        // the same status frame twice in a row (a retransmission), ignored
   kCount
 };
 [[nodiscard]] const char* to_string(DropReason reason) noexcept;
@@ -92,7 +93,8 @@ class Decoder {
   ScaleFactors scale_;
   StatusCycle latest_;
   StatusCycle completed_;
-  std::uint8_t seen_mask_ = 0;  // bit n: frame 0x400 + n seen in the current group
+  std::uint8_t seen_mask_ = 0;      // bit n: frame 0x400 + n seen in the current group
+  std::uint8_t last_index_ = 0xFF;  // the previous status frame's id - 0x400
   TimestampNs cycle_stamp_ns_ = 0;
   DropCounters<DropReason> drops_;
   MonotonicCounter cycles_;
