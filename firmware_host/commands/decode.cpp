@@ -30,6 +30,9 @@ struct DecoderEntry {
 constexpr DecoderEntry kDecoders[] = {
     {"nmea", "NMEA 0183 byte stream from a GNSS receiver", &decode_nmea},
     {"rmp", "Segway RMP CAN log (candump format, or id:XXXX byte lines)", &decode_rmp},
+    {"scip2", "Hokuyo SCIP 2.0 byte stream (URG/UTM scanners)", &decode_scip2},
+    {"lms2xx", "SICK LMS 200/291 serial byte stream (telegrams, ACK/NAK)", &decode_lms2xx},
+    {"cola", "SICK TiM/LMS1xx/LMS5xx CoLa A or B stream (raw, or pcapng.json)", &decode_cola},
 };
 
 // Reads a whole capture ("-" is standard input). Offline decoding may allocate: it is not the

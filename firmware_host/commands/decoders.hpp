@@ -24,6 +24,9 @@ using DecoderFunction = int (*)(const Capture& capture, std::ostream& out, std::
 
 int decode_nmea(const Capture& capture, std::ostream& out, std::ostream& err);
 int decode_rmp(const Capture& capture, std::ostream& out, std::ostream& err);
+int decode_scip2(const Capture& capture, std::ostream& out, std::ostream& err);
+int decode_lms2xx(const Capture& capture, std::ostream& out, std::ostream& err);
+int decode_cola(const Capture& capture, std::ostream& out, std::ostream& err);
 
 // 1-based line of a byte offset, for error reports that point into a text capture.
 class LineIndex {

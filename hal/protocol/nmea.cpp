@@ -2,8 +2,10 @@
 // function per sentence type reads its fields.
 #include "blockmap/hal/protocol/nmea.hpp"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstring>
 #include <optional>
 #include <string_view>
 #include <type_traits>
@@ -375,6 +377,21 @@ bool parse_zda(const Fields& f, msg::GpsFix& fix, ZdaExtra& zda) noexcept {
                            fix.utc_month <= 12 && fix.utc_year >= 1980);
 }
 
+// Printable ASCII other than '$': the characters a sentence body is made of.
+constexpr std::array<bool, 256> kOrdinary = [] {
+  std::array<bool, 256> table{};
+  for (int c = 0x20; c <= 0x7E; ++c) table[static_cast<std::size_t>(c)] = c != '$';
+  return table;
+}();
+
+// How many ordinary characters `bytes` starts with, at most `limit` (at least 1 is known).
+std::size_t ordinary_run(std::span<const std::uint8_t> bytes, std::size_t limit) noexcept {
+  const std::size_t end = std::min(bytes.size(), limit);
+  std::size_t run = 1;
+  while (run < end && kOrdinary[bytes[run]]) ++run;
+  return run;
+}
+
 int hex_value(char c) noexcept {
   if (c >= '0' && c <= '9') return c - '0';
   if (c >= 'A' && c <= 'F') return c - 'A' + 10;
@@ -500,7 +517,12 @@ Decoder::Step Decoder::push(std::span<const std::uint8_t> bytes, TimestampNs rx_
       state_ = State::kHunting;
       return reject(i + 1, DropReason::kTooLong);
     }
-    line_[line_length_++] = c;
+    // Fast path: copy the run of ordinary sentence characters that starts here in one go.
+    const std::size_t run = ordinary_run(bytes.subspan(i), body_limit - line_length_);
+    std::memcpy(line_.data() + line_length_, bytes.data() + i, run);
+    line_length_ += run;
+    stream_offset_ += run - 1;
+    i += run - 1;
   }
   return Step{bytes.size()};
 }

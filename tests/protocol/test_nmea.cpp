@@ -423,7 +423,7 @@ TEST(Nmea, GpsdLogsMatchGpsdsPositionsAndTimes) {
         blockmap::testing::read_text(blockmap::testing::project_data(name + ".chk")));
     std::string line;
     while (std::getline(expected, line)) {
-      if (line.rfind("{\"class\":\"TPV\"", 0) != 0) continue;
+      if (line.rfind(R"({"class":"TPV")", 0) != 0) continue;
       const nlohmann::json tpv = nlohmann::json::parse(line);
       if (!tpv.contains("lat") || !tpv.contains("time")) continue;
       const std::int32_t ms = ms_of_iso_time(tpv["time"].get<std::string>());

@@ -1,11 +1,16 @@
 #include "cli.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
+#include <filesystem>
+#include <fstream>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "blockmap/hal/protocol/hokuyo_scip2.hpp"
+#include "blockmap/hal/protocol/sick_lms2xx.hpp"
 #include "test_data.hpp"
 
 namespace blockmap::cli {
@@ -108,6 +113,50 @@ TEST(Cli, DecodeRmpReadsCandumpAndOrcaLines) {
                             "\"ui_battery_v\":9.325,\"powerbase_battery_v\":78.0"),
             std::string::npos)
       << result.out;
+}
+
+TEST(Cli, DecodeColaWritesEveryRealScan) {
+  const std::string capture =
+      blockmap::testing::project_data("cola/sick_scan_xd_test_pcapng_all16_frames.bin").string();
+  const Result result = run_cli({"decode", "cola", capture.c_str()});
+  EXPECT_EQ(result.status, kExitOk);
+  EXPECT_EQ(count_lines(result.out), 16u);
+  EXPECT_NE(result.out.find("\"beams\":811,\"start_deg\":-135.0"), std::string::npos);
+  EXPECT_NE(result.err.find("16 scans"), std::string::npos) << result.err;
+}
+
+TEST(Cli, DecodeLms2xxAndScip2ReadTheirOwnEncodings) {
+  // Per process: the four test trees run this test side by side.
+  const std::filesystem::path dir = std::filesystem::temp_directory_path();
+  const std::string unique = std::to_string(::getpid());
+  std::vector<std::uint16_t> values(181, 1234);
+  std::vector<std::uint8_t> telegram(900);
+  const std::size_t n = hal::protocol::sick_lms2xx::encode_measured_values(
+      telegram, values, hal::protocol::sick_lms2xx::Units::kCm, 0x00);
+  const std::string lms_path = (dir / ("blockmap_cli_test_" + unique + ".lms")).string();
+  std::ofstream(lms_path, std::ios::binary)
+      .write(reinterpret_cast<const char*>(telegram.data()), static_cast<std::streamsize>(n));
+  const Result lms = run_cli({"decode", "lms2xx", lms_path.c_str()});
+  EXPECT_EQ(lms.status, kExitOk);
+  EXPECT_NE(lms.out.find("\"count\":181,\"units\":\"cm\""), std::string::npos)
+      << lms.out.substr(0, 300);
+  EXPECT_NE(lms.out.find("[12.34,12.34,"), std::string::npos);
+
+  std::vector<char> reply(4096);
+  const std::vector<std::uint32_t> ranges(11, 1500);
+  const std::size_t m =
+      hal::protocol::hokuyo_scip2::encode_scan_reply(reply, "GD0044005401", "00", 77, ranges);
+  const std::string scip_path = (dir / ("blockmap_cli_test_" + unique + ".scip")).string();
+  std::ofstream(scip_path, std::ios::binary).write(reply.data(), static_cast<std::streamsize>(m));
+  const Result scip = run_cli({"decode", "scip2", scip_path.c_str()});
+  EXPECT_EQ(scip.status, kExitOk);
+  EXPECT_NE(
+      scip.out.find(
+          "\"command\":\"GD0044005401\",\"status\":\"00\",\"sensor_time_ms\":77,\"beams\":11"),
+      std::string::npos)
+      << scip.out;
+  std::filesystem::remove(lms_path);
+  std::filesystem::remove(scip_path);
 }
 
 TEST(Cli, DecodeNeedsAKnownProtocolAndAReadableFile) {

@@ -1,0 +1,189 @@
+// `blockmap decode cola`: one JSON object per telegram of a SICK TiM/LMS1xx/LMS5xx CoLa stream
+// (docs/PROTOCOLS.md section 3), CoLa A or CoLa B as detected from the first telegram: its
+// offset, dialect, type and command; for an LMDscandata scan the beam count, start and step in
+// degrees (scanner frame: x forward, counter-clockwise), scan frequency, the device's counters,
+// ranges_m (null for beams without a valid return) and rssi when present; for other telegrams the
+// payload (hex for CoLa B, text for CoLa A). Dropped candidates are {"error": reason, "offset": N}.
+//
+// The capture is raw bytes, or the JSON list of TCP segments that SICK's pcap_json_converter
+// writes (a file starting with '['), whose "tcp.payload" hex strings are joined in order; offsets
+// then count bytes of the joined payloads.
+#include <cctype>
+#include <cstdio>
+#include <memory>
+#include <numbers>
+#include <ostream>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "blockmap/hal/protocol/sick_cola.hpp"
+#include "cli.hpp"
+#include "commands/decoders.hpp"
+
+namespace blockmap::cli {
+namespace {
+
+namespace cola = hal::protocol::sick_cola;
+
+constexpr double kDegreesPerRadian = 180.0 / std::numbers::pi;
+
+bool looks_like_json(const std::vector<std::uint8_t>& bytes) {
+  for (const std::uint8_t byte : bytes) {
+    if (std::isspace(byte) == 0) {
+      return byte == '[';
+    }
+  }
+  return false;
+}
+
+int hex_value(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  return -1;
+}
+
+// "02:02:02:02:00:..." appended to `stream`; false when it is not colon-separated hex.
+bool append_hex(const std::string& text, std::vector<std::uint8_t>& stream) {
+  for (std::size_t i = 0; i < text.size(); i += 3) {
+    const int high = hex_value(text[i]);
+    const int low = i + 1 < text.size() ? hex_value(text[i + 1]) : -1;
+    if (high < 0 || low < 0 || (i + 2 < text.size() && text[i + 2] != ':')) {
+      return false;
+    }
+    stream.push_back(static_cast<std::uint8_t>(high * 16 + low));
+  }
+  return true;
+}
+
+// The joined "_source.layers.tcp.tcp.payload" of every entry; false with a message on `err`.
+bool payloads_of_json(const Capture& capture, std::vector<std::uint8_t>& stream,
+                      std::ostream& err) {
+  const Json entries = Json::parse(capture.bytes.begin(), capture.bytes.end(), nullptr, false);
+  if (entries.is_discarded() || !entries.is_array()) {
+    err << "blockmap: '" << capture.path << "' starts with '[' but is not a JSON list\n";
+    return false;
+  }
+  for (const Json& entry : entries) {
+    const Json* node = &entry;
+    for (const char* key : {"_source", "layers", "tcp", "tcp.payload"}) {
+      const auto found = node->is_object() ? node->find(key) : node->end();
+      node = (node->is_object() && found != node->end()) ? &*found : nullptr;
+      if (node == nullptr) break;
+    }
+    if (node == nullptr || !node->is_string()) {
+      continue;  // a segment without payload (a pure ACK)
+    }
+    if (!append_hex(node->get_ref<const std::string&>(), stream)) {
+      err << "blockmap: '" << capture.path << "': a tcp.payload is not colon-separated hex\n";
+      return false;
+    }
+  }
+  return true;
+}
+
+std::string payload_text(const cola::Telegram& telegram) {
+  std::string text;
+  if (telegram.dialect == cola::Dialect::kColaA) {
+    text.assign(telegram.payload.begin(), telegram.payload.end());
+    return text;
+  }
+  text.reserve(telegram.payload.size() * 2);
+  for (const std::uint8_t byte : telegram.payload) {
+    char pair[4];
+    std::snprintf(pair, sizeof pair, "%02X", static_cast<unsigned>(byte));
+    text += pair;
+  }
+  return text;
+}
+
+void add_scan(Json& line, const msg::LaserScan& scan, const cola::ScanInfo& info) {
+  line["beams"] = scan.beam_count;
+  line["start_deg"] = rounded(scan.start_angle_rad * kDegreesPerRadian, 6);
+  line["step_deg"] = rounded(scan.angle_increment_rad * kDegreesPerRadian, 6);
+  line["scan_hz"] = rounded(static_cast<double>(info.scan_frequency_centihz) / 100.0, 2);
+  line["scan_counter"] = info.scan_counter;
+  line["telegram_counter"] = info.telegram_counter;
+  line["time_since_startup_us"] = info.time_since_startup_us;
+  Json ranges = Json::array();
+  for (std::size_t i = 0; i < scan.beam_count; ++i) {
+    // Millimetres at scale 1: four decimals keep every range and a tenth of a millimetre more.
+    ranges.push_back(scan.status[i] == msg::BeamStatus::kValid
+                         ? rounded(static_cast<double>(scan.ranges_m[i]), 4)
+                         : Json());
+  }
+  line["ranges_m"] = std::move(ranges);
+  if (scan.has_intensities) {
+    Json rssi = Json::array();
+    for (std::size_t i = 0; i < scan.beam_count; ++i) {
+      // Device units, whole numbers as sent.
+      rssi.push_back(static_cast<std::int64_t>(scan.intensities[i]));
+    }
+    line["rssi"] = std::move(rssi);
+  }
+}
+
+void print_step(const cola::Decoder::Step& step, std::ostream& out) {
+  Json line;
+  if (step.telegram != nullptr) {
+    const cola::Telegram& telegram = *step.telegram;
+    line["offset"] = telegram.start_offset;
+    line["dialect"] = cola::to_string(telegram.dialect);
+    line["type"] = std::string(telegram.type);
+    line["command"] = std::string(telegram.command);
+    if (step.scan != nullptr) {
+      add_scan(line, *step.scan, *step.scan_info);
+    } else {
+      line["payload"] = payload_text(telegram);
+    }
+  } else if (step.rejected) {
+    line["error"] = cola::to_string(step.reason);
+    line["offset"] = step.start_offset;
+  } else {
+    return;
+  }
+  out << line.dump() << '\n';
+}
+
+}  // namespace
+
+int decode_cola(const Capture& capture, std::ostream& out, std::ostream& err) {
+  std::vector<std::uint8_t> joined;
+  const bool json = looks_like_json(capture.bytes);
+  if (json && !payloads_of_json(capture, joined, err)) {
+    return kExitFailure;
+  }
+  const std::vector<std::uint8_t>& bytes = json ? joined : capture.bytes;
+  // Offline decoding may allocate: the decoder lives on the heap, not on a small stack.
+  auto decoder = std::make_unique<cola::StaticDecoder<>>();
+  std::span<const std::uint8_t> rest(bytes);
+  for (;;) {
+    const cola::Decoder::Step step = decoder->push(rest, 0);
+    rest = rest.subspan(step.consumed);
+    print_step(step, out);
+    if (rest.empty() && !step.has_event()) {
+      break;
+    }
+  }
+  for (;;) {  // the end of the capture: a telegram cut off there is reported as truncated
+    const cola::Decoder::Step step = decoder->flush();
+    print_step(step, out);
+    if (!step.has_event()) {
+      break;
+    }
+  }
+  err << "cola: " << decoder->telegrams_decoded() << " telegrams decoded ("
+      << decoder->scans_decoded() << " scans)";
+  for (std::size_t r = 0; r < static_cast<std::size_t>(cola::DropReason::kCount); ++r) {
+    const auto reason = static_cast<cola::DropReason>(r);
+    if (decoder->drops().value(reason) != 0) {
+      err << ", " << cola::to_string(reason) << " " << decoder->drops().value(reason);
+    }
+  }
+  err << ", " << decoder->dropped_bytes() << " bytes dropped\n";
+  return kExitOk;
+}
+
+}  // namespace blockmap::cli

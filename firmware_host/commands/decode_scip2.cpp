@@ -1,0 +1,61 @@
+// `blockmap decode scip2`: a Hokuyo SCIP 2.0 byte capture as one JSON object per reply; scans
+// with their geometry and ranges (null where the beam has no valid range); damaged replies as
+// {"error": reason, "line": N}.
+#include <ostream>
+#include <span>
+#include <string>
+
+#include "blockmap/hal/protocol/hokuyo_scip2.hpp"
+#include "cli.hpp"
+#include "commands/decoders.hpp"
+
+namespace blockmap::cli {
+
+int decode_scip2(const Capture& capture, std::ostream& out, std::ostream& err) {
+  namespace scip2 = hal::protocol::hokuyo_scip2;
+  const LineIndex lines(capture.bytes);
+  scip2::Decoder decoder;
+  std::span<const std::uint8_t> rest(capture.bytes);
+  while (!rest.empty()) {
+    const std::size_t offset = capture.bytes.size() - rest.size();
+    const scip2::Decoder::Step step = decoder.push(rest, 0);
+    rest = rest.subspan(step.consumed);
+    Json line;
+    if (step.rejected) {
+      line["error"] = scip2::to_string(step.reason);
+      line["line"] = lines.line_of(offset + step.consumed - 1);
+    } else if (step.reply != nullptr) {
+      line["command"] = std::string(step.reply->echo);
+      line["status"] = std::string(step.reply->status);
+      if (step.scan != nullptr) {
+        const msg::LaserScan& scan = *step.scan;
+        line["sensor_time_ms"] = scan.scan_counter;
+        line["beams"] = scan.beam_count;
+        line["start_angle_rad"] = rounded(scan.start_angle_rad, 9);
+        line["angle_increment_rad"] = rounded(scan.angle_increment_rad, 9);
+        Json ranges = Json::array();
+        for (std::size_t i = 0; i < scan.beam_count; ++i) {
+          ranges.push_back(scan.status[i] == msg::BeamStatus::kValid
+                               ? rounded(static_cast<double>(scan.ranges_m[i]), 3)
+                               : Json());
+        }
+        line["ranges_m"] = std::move(ranges);
+      }
+    } else {
+      continue;
+    }
+    out << line.dump() << '\n';
+  }
+  err << "scip2: " << decoder.replies_decoded() << " replies, " << decoder.scans_decoded()
+      << " scans";
+  for (std::size_t r = 0; r < static_cast<std::size_t>(scip2::DropReason::kCount); ++r) {
+    const auto reason = static_cast<scip2::DropReason>(r);
+    if (decoder.drops().value(reason) != 0) {
+      err << ", " << scip2::to_string(reason) << " " << decoder.drops().value(reason);
+    }
+  }
+  err << '\n';
+  return kExitOk;
+}
+
+}  // namespace blockmap::cli

@@ -1,0 +1,157 @@
+#include "blockmap/hal/devices/laser_scanners.hpp"
+
+#include <string_view>
+
+namespace blockmap::hal::devices {
+
+namespace lms = protocol::sick_lms2xx;
+namespace scip2 = protocol::hokuyo_scip2;
+
+namespace {
+
+// Writes a whole command or reports why it could not.
+IoStatus write_all(ByteStream& port, std::span<const std::uint8_t> bytes) {
+  const WriteResult result = port.write(bytes, kNanosecondsPerSecond / 10);
+  if (result.status != IoStatus::kOk) {
+    return result.status;
+  }
+  return result.bytes == bytes.size() ? IoStatus::kOk : IoStatus::kTimedOut;
+}
+
+IoStatus write_text(ByteStream& port, std::string_view text) {
+  return write_all(port, std::span<const std::uint8_t>(
+                             reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
+}
+
+}  // namespace
+
+void ScanPublisher::publish(const msg::LaserScan& scan) {
+  stamped_ = scan;
+  stamped_.header.stamp_ns -= latency_ns_;
+  if (scans_.try_push(stamped_)) {
+    published_.increment();
+  } else {
+    rejected_.increment();
+  }
+}
+
+Lms2xxScanner::Lms2xxScanner(ByteStream& port, SpscQueueRef<msg::LaserScan>& scans,
+                             const Lms2xxScannerConfig& config)
+    : ScanPublisher(scans, config.latency_ns), port_(port), decoder_(config.codec) {}
+
+IoStatus Lms2xxScanner::start() {
+  std::array<std::uint8_t, lms::kRequestBufferBytes> request{};
+  const std::size_t length = lms::encode_continuous_output(request);
+  return write_all(port_, std::span<const std::uint8_t>(request.data(), length));
+}
+
+IoStatus Lms2xxScanner::poll(TimestampNs timeout_ns) {
+  const ReadResult read = port_.read(read_buffer_, timeout_ns);
+  std::span<const std::uint8_t> rest(read_buffer_.data(), read.bytes);
+  // The codec may hand out events from bytes it had kept (after a false start byte), so it is
+  // called until it says there is nothing more, even with no new bytes.
+  for (;;) {
+    const lms::Decoder::Step step = decoder_.push(rest, read.stamp_ns);
+    rest = rest.subspan(step.consumed);
+    if (step.event == lms::Decoder::Event::kNone) {
+      break;
+    }
+    handle(step);
+  }
+  return read.status;
+}
+
+void Lms2xxScanner::handle(const lms::Decoder::Step& step) {
+  if (step.event != lms::Decoder::Event::kTelegram) {
+    return;
+  }
+  const lms::Telegram& telegram = *step.telegram;
+  if (telegram.has_scan) {
+    publish(telegram.scan);
+  } else if (telegram.command == lms::command::kSwitchModeReply && !telegram.data.empty() &&
+             telegram.data[0] == 0x00) {
+    mode_switches_.increment();
+  }
+}
+
+UrgScanner::UrgScanner(ByteStream& port, SpscQueueRef<msg::LaserScan>& scans,
+                       const UrgScannerConfig& config)
+    : ScanPublisher(scans, config.latency_ns),
+      port_(port),
+      config_(config),
+      decoder_(config.codec) {}
+
+IoStatus UrgScanner::start() {
+  // A sensor may boot in SCIP 1.1; "SCIP2.0" switches it and is harmless when already there.
+  for (std::string_view command : {"SCIP2.0\n", "PP\n", "BM\n"}) {
+    if (const IoStatus status = write_text(port_, command); status != IoStatus::kOk) {
+      return status;
+    }
+  }
+  const scip2::SensorParameters& sensor = decoder_.sensor();
+  std::array<char, 24> command{};
+  const std::size_t length = scip2::encode_continuous_request(
+      command, sensor.first_step, sensor.last_step, config_.cluster, 0, 0);
+  if (length == 0) {
+    return IoStatus::kInvalidArgument;
+  }
+  return write_text(port_, std::string_view(command.data(), length));
+}
+
+IoStatus UrgScanner::poll(TimestampNs timeout_ns) {
+  const ReadResult read = port_.read(read_buffer_, timeout_ns);
+  std::span<const std::uint8_t> rest(read_buffer_.data(), read.bytes);
+  while (!rest.empty()) {
+    const scip2::Decoder::Step step = decoder_.push(rest, read.stamp_ns);
+    rest = rest.subspan(step.consumed);
+    if (step.scan != nullptr) {
+      publish(*step.scan);
+    } else if (step.reply != nullptr && step.reply->status != "00" && step.reply->status != "99" &&
+               step.reply->status.size() == 2) {
+      error_replies_.increment();
+    }
+  }
+  return read.status;
+}
+
+TimScanner::TimScanner(UsbBulk& usb, SpscQueueRef<msg::LaserScan>& scans,
+                       const TimScannerConfig& config)
+    : ScanPublisher(scans, config.latency_ns), usb_(usb), config_(config), decoder_(config.codec) {}
+
+IoStatus TimScanner::start() {
+  std::array<std::uint8_t, 64> command{};
+  const std::size_t length =
+      protocol::sick_cola::encode_scan_events(config_.dialect, true, command);
+  if (length == 0) {
+    return IoStatus::kInvalidArgument;
+  }
+  const WriteResult written = usb_.transfer_out(
+      std::span<const std::uint8_t>(command.data(), length), config_.transfer_timeout_ns);
+  if (written.status != IoStatus::kOk) {
+    return written.status;
+  }
+  return written.bytes == length ? IoStatus::kOk : IoStatus::kTimedOut;
+}
+
+IoStatus TimScanner::poll(TimestampNs timeout_ns) {
+  const ReadResult read = usb_.transfer_in(transfer_buffer_, timeout_ns);
+  if (read.status == IoStatus::kDeviceLost) {
+    while (decoder_.flush().has_event()) {
+    }
+    return read.status;
+  }
+  std::span<const std::uint8_t> rest(transfer_buffer_.data(), read.bytes);
+  for (;;) {
+    const protocol::sick_cola::Decoder::Step step = decoder_.push(rest, read.stamp_ns);
+    rest = rest.subspan(step.consumed);
+    if (step.scan != nullptr) {
+      publish(*step.scan);
+    }
+    if (!step.has_event() && rest.empty()) {
+      break;
+    }
+  }
+  return read.status;
+}
+
+}  // namespace blockmap::hal::devices

@@ -1,0 +1,127 @@
+// Laser scanners on their ports: each start() sends the commands that make the device stream
+// scans, each poll() reads once, decodes and publishes every complete scan into the runtime's
+// queue. Scans are stamped by the codec with the arrival of their first byte, minus the
+// configured latency (transfer and sweep time, PROTOCOLS.md section 6).
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include "blockmap/core/counter.hpp"
+#include "blockmap/core/spsc_queue.hpp"
+#include "blockmap/hal/byte_stream.hpp"
+#include "blockmap/hal/protocol/hokuyo_scip2.hpp"
+#include "blockmap/hal/protocol/sick_cola.hpp"
+#include "blockmap/hal/protocol/sick_lms2xx.hpp"
+#include "blockmap/hal/usb_bulk.hpp"
+#include "blockmap/msg/laser_scan.hpp"
+
+namespace blockmap::hal::devices {
+
+// What every scanner device counts and how it publishes.
+class ScanPublisher {
+ public:
+  ScanPublisher(SpscQueueRef<msg::LaserScan>& scans, TimestampNs latency_ns)
+      : scans_(scans), latency_ns_(latency_ns) {}
+
+  [[nodiscard]] std::uint64_t scans_published() const noexcept { return published_.value(); }
+  // Scans the queue had no room for (the pipeline fell behind).
+  [[nodiscard]] std::uint64_t scans_rejected() const noexcept { return rejected_.value(); }
+
+ protected:
+  void publish(const msg::LaserScan& scan);
+
+ private:
+  SpscQueueRef<msg::LaserScan>& scans_;
+  TimestampNs latency_ns_;
+  msg::LaserScan stamped_;
+  MonotonicCounter published_;
+  MonotonicCounter rejected_;
+};
+
+struct Lms2xxScannerConfig {
+  protocol::sick_lms2xx::Config codec;
+  // Back-dating of each scan: the telegram's transfer starts after the sweep it reports.
+  TimestampNs latency_ns = 0;
+};
+
+// SICK LMS 200/291 on a serial line (PROTOCOLS.md 2.5: continuous output after 20 24).
+class Lms2xxScanner : public ScanPublisher {
+ public:
+  Lms2xxScanner(ByteStream& port, SpscQueueRef<msg::LaserScan>& scans,
+                const Lms2xxScannerConfig& config);
+
+  // Requests continuous output of all values. The scanner acknowledges with 06 and an A0 reply,
+  // which poll() reads (see acks() and mode_switches()).
+  IoStatus start();
+  IoStatus poll(TimestampNs timeout_ns);
+
+  [[nodiscard]] const protocol::sick_lms2xx::Decoder& decoder() const noexcept { return decoder_; }
+  // A0 replies with a success status (00), i.e. accepted mode changes.
+  [[nodiscard]] std::uint64_t mode_switches() const noexcept { return mode_switches_.value(); }
+
+ private:
+  void handle(const protocol::sick_lms2xx::Decoder::Step& step);
+
+  ByteStream& port_;
+  protocol::sick_lms2xx::Decoder decoder_;
+  std::array<std::uint8_t, 1024> read_buffer_{};
+  MonotonicCounter mode_switches_;
+};
+
+struct UrgScannerConfig {
+  protocol::hokuyo_scip2::Config codec;
+  std::uint32_t cluster = 1;  // steps per value
+  TimestampNs latency_ns = 0;
+};
+
+// Hokuyo URG/UTM on USB CDC-ACM or serial (PROTOCOLS.md 4.1-4.5): switch to SCIP 2.0, read the
+// geometry (PP), laser on (BM), then continuous three-character scans over the valid steps (MD).
+class UrgScanner : public ScanPublisher {
+ public:
+  UrgScanner(ByteStream& port, SpscQueueRef<msg::LaserScan>& scans, const UrgScannerConfig& config);
+
+  IoStatus start();
+  IoStatus poll(TimestampNs timeout_ns);
+
+  [[nodiscard]] const protocol::hokuyo_scip2::Decoder& decoder() const noexcept { return decoder_; }
+  // Replies whose status is neither 00 nor 99 (a command the firmware refused).
+  [[nodiscard]] std::uint64_t error_replies() const noexcept { return error_replies_.value(); }
+
+ private:
+  ByteStream& port_;
+  UrgScannerConfig config_;
+  protocol::hokuyo_scip2::Decoder decoder_;
+  std::array<std::uint8_t, 1024> read_buffer_{};
+  MonotonicCounter error_replies_;
+};
+
+struct TimScannerConfig {
+  protocol::sick_cola::Config codec;  // framing kDetect reads either dialect
+  // Over USB a TiM speaks CoLa A (PROTOCOLS.md 3.1); the start command goes out in this dialect.
+  protocol::sick_cola::Dialect dialect = protocol::sick_cola::Dialect::kColaA;
+  TimestampNs transfer_timeout_ns = kNanosecondsPerSecond;  // sick_tim uses 1000 ms
+  TimestampNs latency_ns = 0;
+};
+
+// SICK TiM on USB bulk endpoints (PROTOCOLS.md 3.1, 3.3): start() enables the scan events
+// (sEN LMDscandata 1); poll() runs one IN transfer through the CoLa decoder.
+class TimScanner : public ScanPublisher {
+ public:
+  TimScanner(UsbBulk& usb, SpscQueueRef<msg::LaserScan>& scans, const TimScannerConfig& config);
+
+  IoStatus start();
+  // kDeviceLost after a hot-unplug: the bytes of a telegram cut off by it are dropped (flush) so
+  // that the stream restarts cleanly after reconnecting.
+  IoStatus poll(TimestampNs timeout_ns);
+
+  [[nodiscard]] const protocol::sick_cola::Decoder& decoder() const noexcept { return decoder_; }
+
+ private:
+  UsbBulk& usb_;
+  TimScannerConfig config_;
+  protocol::sick_cola::StaticDecoder<> decoder_;
+  std::array<std::uint8_t, 4096> transfer_buffer_{};
+};
+
+}  // namespace blockmap::hal::devices
