@@ -322,6 +322,39 @@ TEST(Nmea, MalformedFieldsAreRejected) {
   }
 }
 
+// Every sentence of vectors/nmea/decoded_examples.json: accepted exactly when its checksum is
+// good, and where the file gives a position, the same position.
+TEST(Nmea, SharedDecodedExamplesAgree) {
+  BLOCKMAP_SHARED_DATA_OR_SKIP(path, "vectors/nmea/decoded_examples.json");
+  const nlohmann::json examples = nlohmann::json::parse(blockmap::testing::read_text(path));
+  ASSERT_EQ(examples.size(), 28u);
+  for (const nlohmann::json& example : examples) {
+    const std::string line = example["sentence"].get<std::string>() + "\r\n";
+    const Decoded decoded = decode(bytes_of(line));
+    const bool has_checksum = !example["checksum_ok"].is_null();
+    const bool proprietary = line[1] == 'P';
+    if (has_checksum && example["checksum_ok"].get<bool>()) {
+      EXPECT_TRUE(decoded.rejections.empty()) << line;
+      EXPECT_EQ(decoded.sentences.size(), proprietary ? 0u : 1u) << line;
+    } else {
+      EXPECT_TRUE(decoded.sentences.empty()) << line;
+      EXPECT_EQ(decoded.rejections.size(), 1u) << line;
+    }
+    const nlohmann::json& values = example["decoded"];
+    if (decoded.sentences.size() == 1 && values.contains("lat") && !values["lat"].is_null()) {
+      EXPECT_NEAR(decoded.sentences[0].fix.latitude_deg, values["lat"].get<double>(), 1e-9) << line;
+      EXPECT_NEAR(decoded.sentences[0].fix.longitude_deg, values["lon"].get<double>(), 1e-9)
+          << line;
+    }
+    if (decoded.sentences.size() == 1 && values.contains("speed_knots") &&
+        !values["speed_knots"].is_null()) {
+      EXPECT_NEAR(decoded.sentences[0].fix.speed_mps,
+                  values["speed_knots"].get<double>() * 1852.0 / 3600.0, 1e-9)
+          << line;
+    }
+  }
+}
+
 // --- the minmea validity sets (tests/data/nmea/minmea_validity_sets.txt)
 
 std::string unescape(const std::string& line) {
