@@ -176,12 +176,7 @@ int decode_cola(const Capture& capture, std::ostream& out, std::ostream& err) {
   }
   err << "cola: " << decoder->telegrams_decoded() << " telegrams decoded ("
       << decoder->scans_decoded() << " scans)";
-  for (std::size_t r = 0; r < static_cast<std::size_t>(cola::DropReason::kCount); ++r) {
-    const auto reason = static_cast<cola::DropReason>(r);
-    if (decoder->drops().value(reason) != 0) {
-      err << ", " << cola::to_string(reason) << " " << decoder->drops().value(reason);
-    }
-  }
+  print_drops(err, decoder->drops());
   err << ", " << decoder->dropped_bytes() << " bytes dropped\n";
   return kExitOk;
 }

@@ -130,12 +130,7 @@ int decode_lms2xx(const Capture& capture, std::ostream& out, std::ostream& err) 
   err << "lms2xx: " << decoder.telegrams_decoded() << " telegrams decoded ("
       << decoder.scans_decoded() << " scans), " << decoder.acks() << " ACK, " << decoder.naks()
       << " NAK";
-  for (std::size_t r = 0; r < static_cast<std::size_t>(lms::DropReason::kCount); ++r) {
-    const auto reason = static_cast<lms::DropReason>(r);
-    if (decoder.drops().value(reason) != 0) {
-      err << ", " << lms::to_string(reason) << " " << decoder.drops().value(reason);
-    }
-  }
+  print_drops(err, decoder.drops());
   err << '\n';
   return kExitOk;
 }

@@ -87,12 +87,7 @@ int decode_nmea(const Capture& capture, std::ostream& out, std::ostream& err) {
     }
   }
   err << "nmea: " << decoder.sentences_decoded() << " sentences decoded";
-  for (std::size_t r = 0; r < static_cast<std::size_t>(nmea::DropReason::kCount); ++r) {
-    const auto reason = static_cast<nmea::DropReason>(r);
-    if (decoder.drops().value(reason) != 0) {
-      err << ", " << nmea::to_string(reason) << " " << decoder.drops().value(reason);
-    }
-  }
+  print_drops(err, decoder.drops());
   err << '\n';
   return kExitOk;
 }

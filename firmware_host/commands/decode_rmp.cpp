@@ -116,12 +116,7 @@ int decode_rmp(const Capture& capture, std::ostream& out, std::ostream& err) {
     out << line.dump() << '\n';
   }
   err << "rmp: " << frames << " frames, " << decoder.cycles_decoded() << " complete status groups";
-  for (std::size_t r = 0; r < static_cast<std::size_t>(rmp::DropReason::kCount); ++r) {
-    const auto reason = static_cast<rmp::DropReason>(r);
-    if (decoder.drops().value(reason) != 0) {
-      err << ", " << rmp::to_string(reason) << " " << decoder.drops().value(reason);
-    }
-  }
+  print_drops(err, decoder.drops());
   err << '\n';
   return kExitOk;
 }

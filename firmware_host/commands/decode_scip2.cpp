@@ -48,12 +48,7 @@ int decode_scip2(const Capture& capture, std::ostream& out, std::ostream& err) {
   }
   err << "scip2: " << decoder.replies_decoded() << " replies, " << decoder.scans_decoded()
       << " scans";
-  for (std::size_t r = 0; r < static_cast<std::size_t>(scip2::DropReason::kCount); ++r) {
-    const auto reason = static_cast<scip2::DropReason>(r);
-    if (decoder.drops().value(reason) != 0) {
-      err << ", " << scip2::to_string(reason) << " " << decoder.drops().value(reason);
-    }
-  }
+  print_drops(err, decoder.drops());
   err << '\n';
   return kExitOk;
 }

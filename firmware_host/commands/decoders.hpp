@@ -10,6 +10,9 @@
 #include <vector>
 
 #include <nlohmann/json.hpp>
+#include <ostream>
+
+#include "blockmap/hal/protocol/drop_counters.hpp"
 
 namespace blockmap::cli {
 
@@ -37,6 +40,18 @@ class LineIndex {
  private:
   std::vector<std::size_t> newlines_;
 };
+
+// Appends ", reason count" for every drop reason with a non-zero count: the tail of each
+// decoder's one-line summary.
+template <typename Reason>
+void print_drops(std::ostream& err, const hal::protocol::DropCounters<Reason>& drops) {
+  for (std::size_t r = 0; r < hal::protocol::DropCounters<Reason>::kReasons; ++r) {
+    const auto reason = static_cast<Reason>(r);
+    if (drops.value(reason) != 0) {
+      err << ", " << to_string(reason) << " " << drops.value(reason);
+    }
+  }
+}
 
 // `value` with `decimals` decimals: the nearest double to that decimal, which JSON then prints
 // in its shortest form (41.574970205, not 41.574970204999998).
