@@ -73,6 +73,16 @@ Json rounded(double value, int decimals) {
   return std::strtod(text, nullptr);
 }
 
+Json ranges_json(const msg::LaserScan& scan, int decimals) {
+  Json ranges = Json::array();
+  for (std::size_t i = 0; i < scan.beam_count; ++i) {
+    ranges.push_back(scan.status[i] == msg::BeamStatus::kValid
+                         ? rounded(static_cast<double>(scan.ranges_m[i]), decimals)
+                         : Json());
+  }
+  return ranges;
+}
+
 Command add_decode_command(CLI::App& app) {
   CLI::App* decode = app.add_subcommand(
       "decode", "Decode a raw device capture into JSON Lines (one message a line)");

@@ -107,14 +107,7 @@ void add_scan(Json& line, const msg::LaserScan& scan, const cola::ScanInfo& info
   line["scan_counter"] = info.scan_counter;
   line["telegram_counter"] = info.telegram_counter;
   line["time_since_startup_us"] = info.time_since_startup_us;
-  Json ranges = Json::array();
-  for (std::size_t i = 0; i < scan.beam_count; ++i) {
-    // Millimetres at scale 1: four decimals keep every range and a tenth of a millimetre more.
-    ranges.push_back(scan.status[i] == msg::BeamStatus::kValid
-                         ? rounded(static_cast<double>(scan.ranges_m[i]), 4)
-                         : Json());
-  }
-  line["ranges_m"] = std::move(ranges);
+  line["ranges_m"] = ranges_json(scan, 4);  // mm at scale 1, and a tenth of a mm more
   if (scan.has_intensities) {
     Json rssi = Json::array();
     for (std::size_t i = 0; i < scan.beam_count; ++i) {

@@ -59,14 +59,7 @@ void add_scan(Json& line, const lms::Telegram& telegram) {
   line["start_angle_rad"] = rounded(scan.start_angle_rad, 9);
   line["angle_increment_rad"] = rounded(scan.angle_increment_rad, 9);
   line["range_max_m"] = scan.range_max_m;
-  Json ranges = Json::array();
-  for (std::size_t i = 0; i < scan.beam_count; ++i) {
-    // Millimetres are the finest unit, so three decimals keep every range exactly.
-    ranges.push_back(scan.status[i] == msg::BeamStatus::kValid
-                         ? rounded(static_cast<double>(scan.ranges_m[i]), 3)
-                         : Json());
-  }
-  line["ranges_m"] = std::move(ranges);
+  line["ranges_m"] = ranges_json(scan, 3);  // millimetres at most: three decimals are exact
 }
 
 Json telegram_json(const lms::Telegram& telegram) {

@@ -33,13 +33,7 @@ int decode_scip2(const Capture& capture, std::ostream& out, std::ostream& err) {
         line["beams"] = scan.beam_count;
         line["start_angle_rad"] = rounded(scan.start_angle_rad, 9);
         line["angle_increment_rad"] = rounded(scan.angle_increment_rad, 9);
-        Json ranges = Json::array();
-        for (std::size_t i = 0; i < scan.beam_count; ++i) {
-          ranges.push_back(scan.status[i] == msg::BeamStatus::kValid
-                               ? rounded(static_cast<double>(scan.ranges_m[i]), 3)
-                               : Json());
-        }
-        line["ranges_m"] = std::move(ranges);
+        line["ranges_m"] = ranges_json(scan, 3);
       }
     } else {
       continue;

@@ -13,6 +13,7 @@
 #include <ostream>
 
 #include "blockmap/hal/protocol/drop_counters.hpp"
+#include "blockmap/msg/laser_scan.hpp"
 
 namespace blockmap::cli {
 
@@ -52,6 +53,10 @@ void print_drops(std::ostream& err, const hal::protocol::DropCounters<Reason>& d
     }
   }
 }
+
+// A scan's ranges as a JSON array in metres with `decimals` decimals; null where the beam has
+// no valid range.
+Json ranges_json(const msg::LaserScan& scan, int decimals);
 
 // `value` with `decimals` decimals: the nearest double to that decimal, which JSON then prints
 // in its shortest form (41.574970205, not 41.574970204999998).
