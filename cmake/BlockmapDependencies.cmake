@@ -2,6 +2,8 @@
 #   Eigen 3      the core's only library (header-only, so one copy serves every architecture)
 #   CLI11        command-line parsing in firmware_host (header-only)
 #   nlohmann     JSON output of firmware_host and golden files in tests (header-only)
+#   toml++       robot and world configuration files (header-only mode)
+#   GeographicLib  geodetic <-> local ENU frames (hal/geodesy)
 #   GoogleTest   the test tiers: the host package, or built from /usr/src/googletest with the
 #                cross compiler when cross-compiling
 #   benchmark    Google Benchmark, host builds with BLOCKMAP_BUILD_BENCHMARKS only
@@ -25,6 +27,46 @@ function(blockmap_isolate_header_package target folder)
 endfunction()
 blockmap_isolate_header_package(CLI11::CLI11 CLI)
 blockmap_isolate_header_package(nlohmann_json::nlohmann_json nlohmann)
+
+# toml++ in header-only mode: Debian's CMake package links its shared library, which exists
+# for the host only. One translation unit (hal/config) includes it.
+find_path(BLOCKMAP_TOMLPP_INCLUDE_DIR toml++/toml.h PATHS /usr/include NO_CMAKE_FIND_ROOT_PATH
+          REQUIRED)
+add_library(blockmap_tomlplusplus INTERFACE)
+target_compile_definitions(blockmap_tomlplusplus INTERFACE TOML_HEADER_ONLY=1 TOML_EXCEPTIONS=1
+                                                            TOML_ENABLE_FORMATTERS=0)
+if(CMAKE_CROSSCOMPILING)
+  file(MAKE_DIRECTORY ${CMAKE_BINARY_DIR}/_isolated/tomlplusplus)
+  file(CREATE_LINK ${BLOCKMAP_TOMLPP_INCLUDE_DIR}/toml++
+       ${CMAKE_BINARY_DIR}/_isolated/tomlplusplus/toml++ SYMBOLIC)
+  target_include_directories(blockmap_tomlplusplus SYSTEM INTERFACE
+                             ${CMAKE_BINARY_DIR}/_isolated/tomlplusplus)
+endif()
+add_library(blockmap::tomlplusplus ALIAS blockmap_tomlplusplus)
+
+# GeographicLib. The host links Debian's -dev package. That package cannot be installed for
+# several architectures at once (it is not Multi-Arch: same), so cross builds link the target's
+# runtime library (libgeographiclib23:<arch>, installed by scripts/install-deps test) and use
+# the host's headers, which do not depend on the architecture.
+find_path(BLOCKMAP_GEOGRAPHICLIB_INCLUDE_DIR GeographicLib/LocalCartesian.hpp PATHS /usr/include
+          NO_CMAKE_FIND_ROOT_PATH REQUIRED)
+add_library(blockmap_geographiclib INTERFACE)
+if(CMAKE_CROSSCOMPILING)
+  set(geographiclib_so /usr/lib/${BLOCKMAP_TARGET_TRIPLE}/libGeographicLib.so.23)
+  if(NOT EXISTS ${geographiclib_so})
+    message(FATAL_ERROR "${geographiclib_so} is missing: run scripts/install-deps test")
+  endif()
+  file(MAKE_DIRECTORY ${CMAKE_BINARY_DIR}/_isolated/geographiclib)
+  file(CREATE_LINK ${BLOCKMAP_GEOGRAPHICLIB_INCLUDE_DIR}/GeographicLib
+       ${CMAKE_BINARY_DIR}/_isolated/geographiclib/GeographicLib SYMBOLIC)
+  target_include_directories(blockmap_geographiclib SYSTEM INTERFACE
+                             ${CMAKE_BINARY_DIR}/_isolated/geographiclib)
+  target_link_libraries(blockmap_geographiclib INTERFACE ${geographiclib_so})
+else()
+  find_library(BLOCKMAP_GEOGRAPHICLIB_LIBRARY GeographicLib REQUIRED)
+  target_link_libraries(blockmap_geographiclib INTERFACE ${BLOCKMAP_GEOGRAPHICLIB_LIBRARY})
+endif()
+add_library(blockmap::geographiclib ALIAS blockmap_geographiclib)
 
 if(BLOCKMAP_BUILD_TESTS)
   if(CMAKE_CROSSCOMPILING)

@@ -12,3 +12,5 @@ set(CMAKE_FIND_ROOT_PATH_MODE_INCLUDE ONLY)
 set(CMAKE_FIND_ROOT_PATH_MODE_PACKAGE BOTH)
 set(CMAKE_CROSSCOMPILING_EMULATOR qemu-arm-static -L /usr/arm-linux-gnueabihf)
 set(BLOCKMAP_TARGET_LABEL armhf CACHE STRING "ctest label of the armhf tests")
+# Debian's multiarch folder of target libraries installed with `apt-get install <pkg>:<arch>`.
+set(BLOCKMAP_TARGET_TRIPLE arm-linux-gnueabihf)

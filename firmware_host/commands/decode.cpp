@@ -9,11 +9,13 @@
 #include <iostream>
 #include <iterator>
 #include <memory>
+#include <span>
 #include <ostream>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "blockmap/hal/protocol/byte_log.hpp"
 #include "cli.hpp"
 #include "commands/commands.hpp"
 #include "commands/decoders.hpp"
@@ -35,20 +37,57 @@ constexpr DecoderEntry kDecoders[] = {
     {"cola", "SICK TiM/LMS1xx/LMS5xx CoLa A or B stream (raw, or pcapng.json)", &decode_cola},
 };
 
+// A timestamped byte log -> the device's bytes and their chunks. A damaged record ends the
+// log: what came before it is kept and decoded, and the damage is reported.
+bool unpack_byte_log(Capture& capture, std::ostream& err) {
+  namespace byte_log = hal::protocol::byte_log;
+  std::vector<std::uint8_t> file;
+  file.swap(capture.bytes);
+  const std::span<const std::uint8_t> records = std::span<const std::uint8_t>(file).subspan(byte_log::kMagic.size());
+  byte_log::Reader reader(records);
+  byte_log::Record record;
+  capture.timed = true;
+  for (;;) {
+    const std::size_t offset = byte_log::kMagic.size() + reader.offset();
+    const byte_log::ParseError error = reader.next(record);
+    if (error == byte_log::ParseError::kEnd) {
+      return true;
+    }
+    if (error != byte_log::ParseError::kNone) {
+      err << "blockmap: " << capture.path << ": byte log record at offset " << offset << ": "
+          << byte_log::to_string(error) << "; decoding the records before it\n";
+      return false;
+    }
+    if (record.header.direction == byte_log::Direction::kToDevice) {
+      ++capture.host_records;
+      continue;
+    }
+    capture.chunks.push_back({capture.bytes.size(), record.bytes.size(), record.header.stamp_ns});
+    capture.bytes.insert(capture.bytes.end(), record.bytes.begin(), record.bytes.end());
+  }
+}
+
 // Reads a whole capture ("-" is standard input). Offline decoding may allocate: it is not the
-// onboard runtime.
-bool read_capture(Capture& capture, std::ostream& err) {
+// onboard runtime. False with a message when the file cannot be read; a damaged byte log is
+// reported and its good records kept (`intact` false).
+bool read_capture(Capture& capture, bool& intact, std::ostream& err) {
   if (capture.path == "-") {
     capture.bytes.assign(std::istreambuf_iterator<char>(std::cin),
                          std::istreambuf_iterator<char>());
-    return true;
+  } else {
+    std::ifstream file(capture.path, std::ios::binary);
+    if (!file) {
+      err << "blockmap: cannot open '" << capture.path << "'\n";
+      return false;
+    }
+    capture.bytes.assign(std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>());
   }
-  std::ifstream file(capture.path, std::ios::binary);
-  if (!file) {
-    err << "blockmap: cannot open '" << capture.path << "'\n";
-    return false;
+  intact = true;
+  if (hal::protocol::byte_log::has_magic(capture.bytes)) {
+    intact = unpack_byte_log(capture, err);
+  } else {
+    capture.chunks.push_back({0, capture.bytes.size(), 0});
   }
-  capture.bytes.assign(std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>());
   return true;
 }
 
@@ -65,6 +104,12 @@ LineIndex::LineIndex(const std::vector<std::uint8_t>& bytes) {
 std::size_t LineIndex::line_of(std::uint64_t offset) const {
   return 1 + static_cast<std::size_t>(std::lower_bound(newlines_.begin(), newlines_.end(), offset) -
                                       newlines_.begin());
+}
+
+void add_time(Json& line, const Capture& capture, TimestampNs stamp_ns) {
+  if (capture.timed) {
+    line["t_s"] = rounded(seconds_from_ns(stamp_ns), 6);
+  }
 }
 
 Json rounded(double value, int decimals) {
@@ -97,12 +142,14 @@ Command add_decode_command(CLI::App& app) {
   decode->add_option("protocol", *protocol, help)->required()->check(CLI::IsMember(names));
   decode->add_option("file", capture->path, "the capture; - reads standard input")->required();
   return {decode, [protocol, capture](std::ostream& out, std::ostream& err) {
-            if (!read_capture(*capture, err)) {
+            bool intact = true;
+            if (!read_capture(*capture, intact, err)) {
               return kExitFailure;
             }
             for (const DecoderEntry& entry : kDecoders) {
               if (*protocol == entry.name) {
-                return entry.decode(*capture, out, err);
+                const int status = entry.decode(*capture, out, err);
+                return intact ? status : kExitFailure;
               }
             }
             return kExitUsage;  // unreachable: CLI11 checked the name

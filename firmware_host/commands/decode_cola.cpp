@@ -118,10 +118,11 @@ void add_scan(Json& line, const msg::LaserScan& scan, const cola::ScanInfo& info
   }
 }
 
-void print_step(const cola::Decoder::Step& step, std::ostream& out) {
+void print_step(const cola::Decoder::Step& step, const Capture& capture, std::ostream& out) {
   Json line;
   if (step.telegram != nullptr) {
     const cola::Telegram& telegram = *step.telegram;
+    add_time(line, capture, telegram.stamp_ns);
     line["offset"] = telegram.start_offset;
     line["dialect"] = cola::to_string(telegram.dialect);
     line["type"] = std::string(telegram.type);
@@ -151,18 +152,21 @@ int decode_cola(const Capture& capture, std::ostream& out, std::ostream& err) {
   const std::vector<std::uint8_t>& bytes = json ? joined : capture.bytes;
   // Offline decoding may allocate: the decoder lives on the heap, not on a small stack.
   auto decoder = std::make_unique<cola::StaticDecoder<>>();
-  std::span<const std::uint8_t> rest(bytes);
-  for (;;) {
-    const cola::Decoder::Step step = decoder->push(rest, 0);
-    rest = rest.subspan(step.consumed);
-    print_step(step, out);
-    if (rest.empty() && !step.has_event()) {
-      break;
+  const std::vector<Chunk> whole = {{0, bytes.size(), 0}};
+  for (const Chunk& chunk : json ? whole : capture.chunks) {
+    std::span<const std::uint8_t> rest(bytes.data() + chunk.offset, chunk.length);
+    for (;;) {
+      const cola::Decoder::Step step = decoder->push(rest, chunk.stamp_ns);
+      rest = rest.subspan(step.consumed);
+      print_step(step, capture, out);
+      if (rest.empty() && !step.has_event()) {
+        break;
+      }
     }
   }
   for (;;) {  // the end of the capture: a telegram cut off there is reported as truncated
     const cola::Decoder::Step step = decoder->flush();
-    print_step(step, out);
+    print_step(step, capture, out);
     if (!step.has_event()) {
       break;
     }

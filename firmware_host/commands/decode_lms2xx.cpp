@@ -62,8 +62,9 @@ void add_scan(Json& line, const lms::Telegram& telegram) {
   line["ranges_m"] = ranges_json(scan, 3);  // millimetres at most: three decimals are exact
 }
 
-Json telegram_json(const lms::Telegram& telegram) {
+Json telegram_json(const lms::Telegram& telegram, const Capture& capture) {
   Json line;
+  add_time(line, capture, telegram.stamp_ns);
   line["offset"] = telegram.start_offset;
   line["address"] = hex_byte(telegram.address);
   line["command"] = hex_byte(telegram.command);
@@ -78,7 +79,7 @@ Json telegram_json(const lms::Telegram& telegram) {
 }
 
 // One line for a step with an event; nothing for kNone.
-void print_step(const lms::Decoder::Step& step, std::ostream& out) {
+void print_step(const lms::Decoder::Step& step, const Capture& capture, std::ostream& out) {
   using Event = lms::Decoder::Event;
   Json line;
   switch (step.event) {
@@ -90,7 +91,7 @@ void print_step(const lms::Decoder::Step& step, std::ostream& out) {
       line["offset"] = step.offset;
       break;
     case Event::kTelegram:
-      line = telegram_json(*step.telegram);
+      line = telegram_json(*step.telegram, capture);
       break;
     case Event::kRejected:
       line["error"] = lms::to_string(step.reason);
@@ -104,18 +105,20 @@ void print_step(const lms::Decoder::Step& step, std::ostream& out) {
 
 int decode_lms2xx(const Capture& capture, std::ostream& out, std::ostream& err) {
   lms::Decoder decoder;
-  std::span<const std::uint8_t> rest(capture.bytes);
-  for (;;) {
-    const lms::Decoder::Step step = decoder.push(rest, 0);
-    rest = rest.subspan(step.consumed);
-    print_step(step, out);
-    if (step.event == lms::Decoder::Event::kNone) {
-      break;
+  for (const Chunk& chunk : capture.chunks) {
+    std::span<const std::uint8_t> rest(capture.bytes.data() + chunk.offset, chunk.length);
+    for (;;) {
+      const lms::Decoder::Step step = decoder.push(rest, chunk.stamp_ns);
+      rest = rest.subspan(step.consumed);
+      print_step(step, capture, out);
+      if (step.event == lms::Decoder::Event::kNone) {
+        break;
+      }
     }
   }
   for (;;) {  // the end of the capture: a telegram cut off there is reported as truncated
     const lms::Decoder::Step step = decoder.flush();
-    print_step(step, out);
+    print_step(step, capture, out);
     if (step.event == lms::Decoder::Event::kNone) {
       break;
     }

@@ -73,17 +73,21 @@ int decode_nmea(const Capture& capture, std::ostream& out, std::ostream& err) {
   namespace nmea = hal::protocol::nmea;
   const LineIndex lines(capture.bytes);
   nmea::Decoder decoder;
-  std::span<const std::uint8_t> rest(capture.bytes);
-  while (!rest.empty()) {
-    const nmea::Decoder::Step step = decoder.push(rest, 0);
-    rest = rest.subspan(step.consumed);
-    if (step.sentence != nullptr && carries_position_or_time(step.sentence->type)) {
-      out << nmea_json(*step.sentence).dump() << '\n';
-    } else if (step.rejected) {
-      Json line;
-      line["error"] = nmea::to_string(step.reason);
-      line["line"] = lines.line_of(step.start_offset);
-      out << line.dump() << '\n';
+  // The keys are a contract (ARCHITECTURE.md 4.6): a timed capture's receive times are not
+  // added; the sentences carry their own UTC.
+  for (const Chunk& chunk : capture.chunks) {
+    std::span<const std::uint8_t> rest(capture.bytes.data() + chunk.offset, chunk.length);
+    while (!rest.empty()) {
+      const nmea::Decoder::Step step = decoder.push(rest, chunk.stamp_ns);
+      rest = rest.subspan(step.consumed);
+      if (step.sentence != nullptr && carries_position_or_time(step.sentence->type)) {
+        out << nmea_json(*step.sentence).dump() << '\n';
+      } else if (step.rejected) {
+        Json line;
+        line["error"] = nmea::to_string(step.reason);
+        line["line"] = lines.line_of(step.start_offset);
+        out << line.dump() << '\n';
+      }
     }
   }
   err << "nmea: " << decoder.sentences_decoded() << " sentences decoded";

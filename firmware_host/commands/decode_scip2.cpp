@@ -15,16 +15,18 @@ int decode_scip2(const Capture& capture, std::ostream& out, std::ostream& err) {
   namespace scip2 = hal::protocol::hokuyo_scip2;
   const LineIndex lines(capture.bytes);
   scip2::Decoder decoder;
-  std::span<const std::uint8_t> rest(capture.bytes);
-  while (!rest.empty()) {
-    const std::size_t offset = capture.bytes.size() - rest.size();
-    const scip2::Decoder::Step step = decoder.push(rest, 0);
+  for (const Chunk& chunk : capture.chunks) {
+   std::span<const std::uint8_t> rest(capture.bytes.data() + chunk.offset, chunk.length);
+   while (!rest.empty()) {
+    const std::size_t offset = chunk.offset + chunk.length - rest.size();
+    const scip2::Decoder::Step step = decoder.push(rest, chunk.stamp_ns);
     rest = rest.subspan(step.consumed);
     Json line;
     if (step.rejected) {
       line["error"] = scip2::to_string(step.reason);
       line["line"] = lines.line_of(offset + step.consumed - 1);
     } else if (step.reply != nullptr) {
+      add_time(line, capture, step.scan != nullptr ? step.scan->header.stamp_ns : chunk.stamp_ns);
       line["command"] = std::string(step.reply->echo);
       line["status"] = std::string(step.reply->status);
       if (step.scan != nullptr) {
@@ -39,6 +41,7 @@ int decode_scip2(const Capture& capture, std::ostream& out, std::ostream& err) {
       continue;
     }
     out << line.dump() << '\n';
+   }
   }
   err << "scip2: " << decoder.replies_decoded() << " replies, " << decoder.scans_decoded()
       << " scans";

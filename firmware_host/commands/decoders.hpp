@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 #include <ostream>
 
+#include "blockmap/core/time.hpp"
 #include "blockmap/hal/protocol/drop_counters.hpp"
 #include "blockmap/msg/laser_scan.hpp"
 
@@ -19,10 +20,25 @@ namespace blockmap::cli {
 
 using Json = nlohmann::ordered_json;
 
+// Bytes as one read returned them, and when (a timestamped byte log, docs/log-formats.md).
+struct Chunk {
+  std::size_t offset = 0;  // into Capture::bytes
+  std::size_t length = 0;
+  TimestampNs stamp_ns = 0;
+};
+
+// A whole capture: a raw byte stream (one chunk, no time), or the device-to-host bytes of a
+// timestamped byte log, chunk by chunk (`timed`).
 struct Capture {
   std::string path;
   std::vector<std::uint8_t> bytes;
+  std::vector<Chunk> chunks;
+  bool timed = false;
+  std::size_t host_records = 0;  // host-to-device records of a byte log (not decoded)
 };
+
+// A decoded message's time in a timed capture: Unix seconds with microseconds.
+void add_time(Json& line, const Capture& capture, TimestampNs stamp_ns);
 
 using DecoderFunction = int (*)(const Capture& capture, std::ostream& out, std::ostream& err);
 

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <optional>
 #include <span>
+#include <string_view>
 
 #include "blockmap/core/time.hpp"
 #include "blockmap/hal/protocol/drop_counters.hpp"
@@ -150,5 +151,21 @@ class Decoder {
 
 // The "*hh" value of a sentence body (the characters between '$' and '*').
 [[nodiscard]] std::uint8_t checksum(std::span<const char> body) noexcept;
+
+// --- encoders, for a simulated receiver. Each writes one sentence "$<talker>XXX,...*hh\r\n"
+// to the front of `out` and returns its length, or 0 when `out` is too small
+// (kMaxSentenceBytes always suffices) or `talker` is not two characters. Fields the fix does
+// not have are left empty, as receivers leave them. Latitude and longitude carry five decimals
+// of minutes (1.9 cm), time two decimals of seconds, as common receivers send them.
+
+// GGA: time, position, quality, satellites, HDOP, altitude and geoid separation.
+[[nodiscard]] std::size_t encode_gga(const msg::GpsFix& fix, std::string_view talker,
+                                     std::span<char> out) noexcept;
+// RMC (NMEA 2.3, with the mode indicator): time, status, position, speed, course, date.
+[[nodiscard]] std::size_t encode_rmc(const msg::GpsFix& fix, std::string_view talker,
+                                     std::span<char> out) noexcept;
+// GSA: mode, fix type, up to 12 satellite ids and the dilutions of precision.
+[[nodiscard]] std::size_t encode_gsa(const GsaData& gsa, std::string_view talker,
+                                     std::span<char> out) noexcept;
 
 }  // namespace blockmap::hal::protocol::nmea

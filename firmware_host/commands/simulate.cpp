@@ -1,0 +1,108 @@
+// `blockmap simulate --world NAME [--robot NAME] [--seed N] --out DIR`: a recorded run of the
+// simulated robot (docs/ARCHITECTURE.md 4.3-4.5): the devices' raw logs, exactly as the robot's
+// logger would write them, and the ground truth. The same seed gives the same bytes.
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cstdint>
+#include <fstream>
+#include <memory>
+#include <ostream>
+#include <sstream>
+#include <string>
+
+#include "blockmap/hal/config/config_error.hpp"
+#include "blockmap/hal/sim/robot.hpp"
+#include "blockmap/hal/sim/run_recorder.hpp"
+#include "blockmap/hal/sim/simulation.hpp"
+#include "blockmap/hal/sim/world.hpp"
+#include "cli.hpp"
+#include "commands/commands.hpp"
+
+namespace blockmap::cli {
+namespace {
+
+struct SimulateOptions {
+  std::string world;
+  std::string robot = "paper_rmp";
+  std::uint64_t seed = 1;
+  double duration_s = 0.0;
+  std::string out;
+};
+
+// The text a configuration came from: the built-in one, or the file's.
+std::string config_text(std::string_view builtin, const std::string& name_or_path) {
+  if (!builtin.empty()) {
+    return std::string(builtin);
+  }
+  std::ifstream file(name_or_path);
+  std::ostringstream text;
+  text << file.rdbuf();
+  return text.str();
+}
+
+int simulate(const SimulateOptions& options, std::ostream& err) {
+  const hal::sim::World world = hal::sim::load_world(options.world);
+  const hal::sim::RobotSpec robot = hal::sim::load_robot(options.robot);
+  hal::sim::SimOptions sim_options;
+  sim_options.seed = options.seed;
+  sim_options.max_duration_s = options.duration_s;
+
+  const auto wall_start = std::chrono::steady_clock::now();
+  hal::sim::Simulation simulation(world, robot, sim_options);
+  hal::sim::RunRecorder recorder(options.out, simulation);
+  recorder.write_text_file("world.toml", config_text(hal::sim::builtin_world_text(options.world), options.world));
+  recorder.write_text_file("robot.toml", config_text(hal::sim::builtin_robot_text(options.robot), options.robot));
+  simulation.run(recorder);
+  recorder.finish(options.seed);
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+
+  const hal::sim::SimStats& stats = simulation.stats();
+  err << "simulate: " << world.name << " seed " << options.seed << ": "
+      << simulation.elapsed_s() << " s, " << simulation.motion().distance_m() << " m driven, in "
+      << wall_s << " s (" << simulation.elapsed_s() / wall_s << "x real time); ";
+  for (std::size_t i = 0; i < robot.lasers.size(); ++i) {
+    err << "laser " << robot.lasers[i].name << ' ' << stats.scans_sent[i] << " scans, ";
+  }
+  err << stats.gps_epochs << " GPS epochs (" << stats.gps_epochs_without_fix << " without fix), "
+      << stats.rmp_cycles << " RMP cycles -> " << options.out << '\n';
+  return kExitOk;
+}
+
+}  // namespace
+
+Command add_simulate_command(CLI::App& app) {
+  CLI::App* command = app.add_subcommand(
+      "simulate", "Record a run of the simulated robot through a simulated city block: raw "
+                  "device logs and truth.json");
+  auto options = std::make_shared<SimulateOptions>();
+  std::string worlds;
+  for (const std::string_view name : hal::sim::builtin_world_names()) {
+    worlds += worlds.empty() ? "" : ", ";
+    worlds += name;
+  }
+  command->add_option("--world", options->world, "a built-in world (" + worlds + ") or a world .toml file")
+      ->required();
+  command->add_option("--robot", options->robot, "a built-in robot (paper_rmp) or a robot .toml file")
+      ->capture_default_str();
+  command->add_option("--seed", options->seed, "the run's random seed: the same seed, the same bytes")
+      ->capture_default_str();
+  command->add_option("--duration-s", options->duration_s,
+                      "stop after this much simulated time (0: drive the whole path)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  command->add_option("--out", options->out, "the folder to write the logs into")->required();
+  return {command, [options](std::ostream& /*out*/, std::ostream& err) {
+            try {
+              return simulate(*options, err);
+            } catch (const hal::ConfigError& error) {
+              err << "blockmap: " << error.what() << '\n';
+              return kExitUsage;
+            } catch (const std::runtime_error& error) {
+              err << "blockmap: " << error.what() << '\n';
+              return kExitFailure;
+            }
+          }};
+}
+
+}  // namespace blockmap::cli

@@ -1,0 +1,258 @@
+#include "toml_reader.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <sstream>
+
+namespace blockmap::hal::config {
+
+toml::table parse_document(std::string_view text, std::string_view source) {
+  try {
+    return toml::parse(text, source);
+  } catch (const toml::parse_error& error) {
+    std::ostringstream message;
+    message << source << ':' << error.source().begin.line << ':' << error.source().begin.column
+            << ": " << error.description();
+    throw ConfigError(message.str());
+  }
+}
+
+TableReader::TableReader(const toml::table& table, std::string source, std::string path)
+    : table_(&table), source_(std::move(source)), path_(std::move(path)) {}
+
+std::string TableReader::key_path(std::string_view key) const {
+  return path_.empty() ? std::string(key) : path_ + "." + std::string(key);
+}
+
+void TableReader::fail(std::string_view key, std::string_view what) const {
+  throw ConfigError(source_ + ": " + key_path(key) + ": " + std::string(what));
+}
+
+bool TableReader::has(std::string_view key) const { return table_->contains(key); }
+
+const toml::node* TableReader::find(std::string_view key) {
+  read_.emplace(key);
+  return table_->get(key);
+}
+
+double TableReader::number(std::string_view key) {
+  const toml::node* node = find(key);
+  if (node == nullptr) {
+    fail(key, "missing (a number is required)");
+  }
+  if (const auto value = node->value<double>(); value && (node->is_floating_point() || node->is_integer())) {
+    if (!std::isfinite(*value)) {
+      fail(key, "must be a finite number");
+    }
+    return *value;
+  }
+  fail(key, "expected a number");
+}
+
+double TableReader::number_or(std::string_view key, double fallback) {
+  if (!has(key)) {
+    read_.emplace(key);
+    return fallback;
+  }
+  return number(key);
+}
+
+std::int64_t TableReader::integer(std::string_view key) {
+  const toml::node* node = find(key);
+  if (node == nullptr) {
+    fail(key, "missing (an integer is required)");
+  }
+  if (!node->is_integer()) {
+    fail(key, "expected an integer");
+  }
+  return *node->value<std::int64_t>();
+}
+
+std::int64_t TableReader::integer_or(std::string_view key, std::int64_t fallback) {
+  if (!has(key)) {
+    read_.emplace(key);
+    return fallback;
+  }
+  return integer(key);
+}
+
+bool TableReader::boolean_or(std::string_view key, bool fallback) {
+  const toml::node* node = find(key);
+  if (node == nullptr) {
+    return fallback;
+  }
+  if (!node->is_boolean()) {
+    fail(key, "expected true or false");
+  }
+  return *node->value<bool>();
+}
+
+std::string TableReader::string(std::string_view key) {
+  const toml::node* node = find(key);
+  if (node == nullptr) {
+    fail(key, "missing (a string is required)");
+  }
+  if (!node->is_string()) {
+    fail(key, "expected a string");
+  }
+  return *node->value<std::string>();
+}
+
+std::string TableReader::string_or(std::string_view key, std::string_view fallback) {
+  if (!has(key)) {
+    read_.emplace(key);
+    return std::string(fallback);
+  }
+  return string(key);
+}
+
+double TableReader::unix_time(std::string_view key) {
+  const toml::node* node = find(key);
+  if (node == nullptr) {
+    fail(key, "missing (a date-time such as 2006-05-10T17:00:00Z is required)");
+  }
+  const auto* stamp = node->as_date_time();
+  if (stamp == nullptr || !stamp->get().offset) {
+    fail(key, "expected a date-time with a UTC offset, such as 2006-05-10T17:00:00Z");
+  }
+  const toml::date_time& value = stamp->get();
+  const std::chrono::year_month_day day{std::chrono::year{value.date.year},
+                                        std::chrono::month{value.date.month},
+                                        std::chrono::day{value.date.day}};
+  if (!day.ok()) {
+    fail(key, "not a calendar date");
+  }
+  const auto days = std::chrono::sys_days{day}.time_since_epoch().count();
+  return static_cast<double>(days) * 86400.0 + value.time.hour * 3600.0 +
+         value.time.minute * 60.0 + value.time.second + value.time.nanosecond * 1e-9 -
+         value.offset->minutes * 60.0;
+}
+
+Eigen::Vector2d TableReader::vec2(std::string_view key) {
+  const toml::node* node = find(key);
+  if (node == nullptr) {
+    fail(key, "missing (an [x, y] pair is required)");
+  }
+  const toml::array* array = node->as_array();
+  if (array == nullptr || array->size() != 2 || !(*array)[0].is_number() ||
+      !(*array)[1].is_number()) {
+    fail(key, "expected [x, y] (two numbers)");
+  }
+  const Eigen::Vector2d value(*(*array)[0].value<double>(), *(*array)[1].value<double>());
+  if (!value.allFinite()) {
+    fail(key, "must be finite");
+  }
+  return value;
+}
+
+Eigen::Vector3d TableReader::vec3(std::string_view key) {
+  const toml::node* node = find(key);
+  if (node == nullptr) {
+    fail(key, "missing (an [x, y, z] triple is required)");
+  }
+  const toml::array* array = node->as_array();
+  if (array == nullptr || array->size() != 3 || !(*array)[0].is_number() ||
+      !(*array)[1].is_number() || !(*array)[2].is_number()) {
+    fail(key, "expected [x, y, z] (three numbers)");
+  }
+  const Eigen::Vector3d value(*(*array)[0].value<double>(), *(*array)[1].value<double>(),
+                              *(*array)[2].value<double>());
+  if (!value.allFinite()) {
+    fail(key, "must be finite");
+  }
+  return value;
+}
+
+Eigen::Vector2d TableReader::vec2_or(std::string_view key, const Eigen::Vector2d& fallback) {
+  if (!has(key)) {
+    read_.emplace(key);
+    return fallback;
+  }
+  return vec2(key);
+}
+
+std::vector<Eigen::Vector2d> TableReader::vec2_list(std::string_view key) {
+  const toml::node* node = find(key);
+  if (node == nullptr) {
+    fail(key, "missing (a list of [x, y] pairs is required)");
+  }
+  const toml::array* array = node->as_array();
+  if (array == nullptr) {
+    fail(key, "expected a list of [x, y] pairs");
+  }
+  std::vector<Eigen::Vector2d> points;
+  for (std::size_t i = 0; i < array->size(); ++i) {
+    const toml::array* pair = (*array)[i].as_array();
+    if (pair == nullptr || pair->size() != 2 || !(*pair)[0].is_number() ||
+        !(*pair)[1].is_number()) {
+      fail(std::string(key) + "[" + std::to_string(i) + "]", "expected [x, y] (two numbers)");
+    }
+    points.emplace_back(*(*pair)[0].value<double>(), *(*pair)[1].value<double>());
+  }
+  return points;
+}
+
+std::optional<TableReader> TableReader::table(std::string_view key) {
+  const toml::node* node = find(key);
+  if (node == nullptr) {
+    return std::nullopt;
+  }
+  const toml::table* sub = node->as_table();
+  if (sub == nullptr) {
+    fail(key, "expected a table");
+  }
+  return TableReader(*sub, source_, key_path(key));
+}
+
+std::vector<TableReader> TableReader::tables(std::string_view key) {
+  std::vector<TableReader> result;
+  const toml::node* node = find(key);
+  if (node == nullptr) {
+    return result;
+  }
+  const toml::array* array = node->as_array();
+  if (array == nullptr) {
+    fail(key, "expected an array of tables ([[" + std::string(key) + "]])");
+  }
+  for (std::size_t i = 0; i < array->size(); ++i) {
+    const toml::table* sub = (*array)[i].as_table();
+    if (sub == nullptr) {
+      fail(key, "expected an array of tables ([[" + std::string(key) + "]])");
+    }
+    result.emplace_back(*sub, source_, key_path(key) + "[" + std::to_string(i) + "]");
+  }
+  return result;
+}
+
+double TableReader::positive(std::string_view key, double value) const {
+  if (!(value > 0.0)) {
+    fail(key, "must be > 0");
+  }
+  return value;
+}
+
+double TableReader::non_negative(std::string_view key, double value) const {
+  if (!(value >= 0.0)) {
+    fail(key, "must be >= 0");
+  }
+  return value;
+}
+
+double TableReader::in_range(std::string_view key, double value, double low, double high) const {
+  if (!(value >= low && value <= high)) {
+    std::ostringstream what;
+    what << "must lie in [" << low << ", " << high << "]";
+    fail(key, what.str());
+  }
+  return value;
+}
+
+void TableReader::finish() const {
+  for (const auto& [key, node] : *table_) {
+    if (read_.find(key.str()) == read_.end()) {
+      fail(key.str(), "unknown key");
+    }
+  }
+}
+
+}  // namespace blockmap::hal::config

@@ -1,0 +1,74 @@
+// Strict reading of TOML tables (private to hal/: the only place toml++ is included). Every
+// value is read through a TableReader, which remembers the keys it was asked for; finish()
+// then rejects any key nobody asked for, so a misspelt key or a wrong unit suffix
+// ("height_ft") is an error naming it, never silently ignored.
+#pragma once
+
+#include <toml++/toml.h>
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <optional>
+#include <set>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "blockmap/hal/config/config_error.hpp"
+
+namespace blockmap::hal::config {
+
+// Parses a whole document; a syntax error becomes ConfigError "source:line:column: what".
+[[nodiscard]] toml::table parse_document(std::string_view text, std::string_view source);
+
+class TableReader {
+ public:
+  // `path` is the table's key path for messages ("" for the document, "buildings[2]").
+  TableReader(const toml::table& table, std::string source, std::string path);
+
+  [[nodiscard]] bool has(std::string_view key) const;
+
+  [[nodiscard]] double number(std::string_view key);  // integer or float
+  [[nodiscard]] double number_or(std::string_view key, double fallback);
+  [[nodiscard]] std::int64_t integer(std::string_view key);
+  [[nodiscard]] std::int64_t integer_or(std::string_view key, std::int64_t fallback);
+  [[nodiscard]] bool boolean_or(std::string_view key, bool fallback);
+  [[nodiscard]] std::string string(std::string_view key);
+  [[nodiscard]] std::string string_or(std::string_view key, std::string_view fallback);
+  // A TOML offset date-time, as Unix seconds.
+  [[nodiscard]] double unix_time(std::string_view key);
+  // [x, y]
+  [[nodiscard]] Eigen::Vector2d vec2(std::string_view key);
+  [[nodiscard]] Eigen::Vector2d vec2_or(std::string_view key, const Eigen::Vector2d& fallback);
+  // [x, y, z]
+  [[nodiscard]] Eigen::Vector3d vec3(std::string_view key);
+  // [[x, y], ...]
+  [[nodiscard]] std::vector<Eigen::Vector2d> vec2_list(std::string_view key);
+
+  // A sub-table; none when absent.
+  [[nodiscard]] std::optional<TableReader> table(std::string_view key);
+  // An array of tables ([[key]]); empty when absent.
+  [[nodiscard]] std::vector<TableReader> tables(std::string_view key);
+
+  // Value checks that name the key.
+  double positive(std::string_view key, double value) const;
+  double non_negative(std::string_view key, double value) const;
+  double in_range(std::string_view key, double value, double low, double high) const;
+
+  // Throws for the first key that was never read.
+  void finish() const;
+
+  // "source: path.key: what"
+  [[noreturn]] void fail(std::string_view key, std::string_view what) const;
+
+ private:
+  [[nodiscard]] const toml::node* find(std::string_view key);
+  [[nodiscard]] std::string key_path(std::string_view key) const;
+
+  const toml::table* table_;
+  std::string source_;
+  std::string path_;
+  std::set<std::string, std::less<>> read_;
+};
+
+}  // namespace blockmap::hal::config

@@ -1,0 +1,87 @@
+#include "blockmap/hal/protocol/byte_log.hpp"
+
+#include <algorithm>
+
+namespace blockmap::hal::protocol::byte_log {
+namespace {
+
+std::uint64_t read_le(std::span<const std::uint8_t> bytes) noexcept {
+  std::uint64_t value = 0;
+  for (std::size_t i = bytes.size(); i-- > 0;) {
+    value = (value << 8U) | bytes[i];
+  }
+  return value;
+}
+
+void write_le(std::uint64_t value, std::span<std::uint8_t> out) noexcept {
+  for (std::uint8_t& byte : out) {
+    byte = static_cast<std::uint8_t>(value & 0xFFU);
+    value >>= 8U;
+  }
+}
+
+}  // namespace
+
+const char* to_string(ParseError error) noexcept {
+  switch (error) {
+    case ParseError::kNone:
+      return "none";
+    case ParseError::kEnd:
+      return "end";
+    case ParseError::kTruncatedHeader:
+      return "truncated_header";
+    case ParseError::kTruncatedData:
+      return "truncated_data";
+    case ParseError::kBadDirection:
+      return "bad_direction";
+    case ParseError::kBadReserved:
+      return "bad_reserved";
+    case ParseError::kTooLong:
+      return "too_long";
+  }
+  return "unknown";
+}
+
+bool has_magic(std::span<const std::uint8_t> file) noexcept {
+  return file.size() >= kMagic.size() && std::equal(kMagic.begin(), kMagic.end(), file.begin());
+}
+
+void encode_record_header(const RecordHeader& header,
+                          std::span<std::uint8_t, kRecordHeaderBytes> out) noexcept {
+  write_le(static_cast<std::uint64_t>(header.stamp_ns), out.subspan<0, 8>());
+  write_le(header.length, out.subspan<8, 4>());
+  out[12] = static_cast<std::uint8_t>(header.direction);
+  out[13] = out[14] = out[15] = 0;
+}
+
+ParseError Reader::next(Record& record) noexcept {
+  if (rest_.empty()) {
+    return ParseError::kEnd;
+  }
+  if (rest_.size() < kRecordHeaderBytes) {
+    return ParseError::kTruncatedHeader;
+  }
+  const std::uint64_t length = read_le(rest_.subspan(8, 4));
+  if (rest_[12] > 1) {
+    return ParseError::kBadDirection;
+  }
+  if (rest_[13] != 0 || rest_[14] != 0 || rest_[15] != 0) {
+    return ParseError::kBadReserved;
+  }
+  if (length > kMaxRecordBytes) {
+    return ParseError::kTooLong;
+  }
+  if (rest_.size() - kRecordHeaderBytes < length) {
+    return ParseError::kTruncatedData;
+  }
+  record.header.stamp_ns = static_cast<TimestampNs>(read_le(rest_.subspan(0, 8)));
+  record.header.length = static_cast<std::uint32_t>(length);
+  record.header.direction = static_cast<Direction>(rest_[12]);
+  record.bytes = rest_.subspan(kRecordHeaderBytes, length);
+  const std::size_t size = kRecordHeaderBytes + length;
+  rest_ = rest_.subspan(size);
+  offset_ += size;
+  return ParseError::kNone;
+}
+
+}  // namespace blockmap::hal::protocol::byte_log

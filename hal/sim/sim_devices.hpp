@@ -1,0 +1,121 @@
+// The simulated devices inside a Simulation (private to hal/sim): each knows when its next
+// output is due and produces it through the device's real encoder.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "blockmap/hal/geodesy.hpp"
+#include "blockmap/hal/protocol/nmea.hpp"
+#include "blockmap/hal/protocol/segway_rmp.hpp"
+#include "blockmap/hal/protocol/sick_lms2xx.hpp"
+#include "blockmap/hal/sim/random.hpp"
+#include "blockmap/hal/sim/serial_wire.hpp"
+#include "blockmap/hal/sim/simulation.hpp"
+
+namespace blockmap::hal::sim::detail {
+
+inline constexpr TimestampNs kNever = SerialWire::kNever;
+
+// What every device model reads: the world, the robot's motion and the clock's origin.
+struct SimContext {
+  Scene& scene;
+  RobotMotion& motion;
+  TimestampNs start_ns = 0;
+  TimestampNs end_ns = kNever;  // no new cycles, scans or epochs start after this
+
+  [[nodiscard]] double seconds(TimestampNs stamp_ns) const {
+    return static_cast<double>(stamp_ns - start_ns) * 1e-9;
+  }
+  [[nodiscard]] TimestampNs stamp(double t_s) const {
+    return start_ns + static_cast<TimestampNs>(std::llround(t_s * 1e9));
+  }
+};
+
+// The Segway RMP: a status group of eight frames every 10 ms, 250 us apart on the bus.
+class SimRmp {
+ public:
+  SimRmp(const BaseSpec& base, std::uint64_t seed);
+  [[nodiscard]] TimestampNs next_event_ns(const SimContext& context) const noexcept;
+  void fire(SimContext& context, SimSink& sink, SimStats& stats);
+
+ private:
+  void make_cycle(SimContext& context, SimSink& sink, TimestampNs cycle_ns);
+
+  BaseSpec base_;
+  protocol::segway_rmp::Config codec_;
+  SimRandom random_;
+  std::uint64_t cycle_ = 0;
+  protocol::segway_rmp::StatusFrames frames_{};
+  TimestampNs frames_ns_ = 0;
+  std::size_t next_frame_ = 8;  // 8: none pending
+  double left_m_ = 0.0;         // the base's integrators (reported, with its errors)
+  double right_m_ = 0.0;
+  double last_true_left_m_ = 0.0;
+  double last_true_right_m_ = 0.0;
+  double battery_v_ = 73.0;
+};
+
+// A SICK LMS2xx in continuous mode on its serial line.
+class SimLms {
+ public:
+  SimLms(const LaserSpec& spec, std::size_t device, std::uint64_t seed);
+  [[nodiscard]] TimestampNs next_event_ns(const SimContext& context) const noexcept;
+  void fire(SimContext& context, SimSink& sink, SimStats& stats);
+  [[nodiscard]] std::size_t memory_bytes() const noexcept;
+
+ private:
+  [[nodiscard]] TimestampNs scan_start_ns(const SimContext& context, std::uint64_t scan) const;
+  [[nodiscard]] TimestampNs scan_ready_ns(const SimContext& context, std::uint64_t scan) const;
+  void start_handshake(const SimContext& context, SimSink& sink);
+  void measure_scan(SimContext& context, SimSink& sink, SimStats& stats);
+
+  LaserSpec spec_;
+  std::size_t device_;
+  SimRandom random_;
+  SerialWire wire_;
+  protocol::sick_lms2xx::VariantGeometry geometry_{};
+  int turns_per_scan_ = 1;
+  std::uint64_t turns_between_scans_ = 1;
+  double turn_s_ = 1.0 / 75.0;
+  double first_turn_s_ = 0.0;
+  double range_max_m_ = 80.0;
+  bool started_ = false;
+  std::uint64_t next_scan_ = 0;
+  std::array<std::uint16_t, 401> values_{};
+  std::array<std::uint8_t, protocol::sick_lms2xx::kMaxTelegramBytes> telegram_{};
+};
+
+// An NMEA GPS receiver: an epoch every 1 / rate s, GGA + RMC + GSA a little later.
+class SimGps {
+ public:
+  SimGps(const GpsSpec& spec, const Site& site, std::size_t device, std::uint64_t seed);
+  [[nodiscard]] TimestampNs next_event_ns(const SimContext& context) const noexcept;
+  void fire(SimContext& context, SimSink& sink, SimStats& stats);
+  [[nodiscard]] std::size_t memory_bytes() const noexcept { return wire_.memory_bytes(); }
+
+ private:
+  struct Satellite {
+    double azimuth_rad = 0.0;  // clockwise from north
+    double elevation_rad = 0.0;
+    std::uint16_t id = 0;
+  };
+  [[nodiscard]] TimestampNs epoch_ns(const SimContext& context, std::uint64_t epoch) const;
+  void make_epoch(SimContext& context, SimSink& sink, SimStats& stats);
+  [[nodiscard]] bool blocked(const SimContext& context, const Vec3& antenna,
+                             const Satellite& satellite) const;
+
+  GpsSpec spec_;
+  Site site_;
+  LocalEnuFrame frame_;
+  std::size_t device_;
+  SimRandom random_;
+  SerialWire wire_;
+  std::vector<Satellite> satellites_;
+  Vec3 error_m_ = Vec3::Zero();
+  std::uint64_t next_epoch_ = 1;
+  std::array<char, protocol::nmea::kMaxSentenceBytes> sentence_{};
+};
+
+}  // namespace blockmap::hal::sim::detail
