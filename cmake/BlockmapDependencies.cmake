@@ -44,15 +44,26 @@ if(CMAKE_CROSSCOMPILING)
 endif()
 add_library(blockmap::tomlplusplus ALIAS blockmap_tomlplusplus)
 
-# GeographicLib. The host links Debian's -dev package. That package cannot be installed for
-# several architectures at once (it is not Multi-Arch: same), so cross builds link the target's
-# runtime library (libgeographiclib23:<arch>, installed by scripts/install-deps test) and use
-# the host's headers, which do not depend on the architecture.
+# GeographicLib. The host links Debian's -dev package. Cross builds link the target's library
+# from Debian's arm64/armhf package, which `scripts/install-deps test` unpacks into a private
+# folder (BLOCKMAP_TARGET_LIBS_DIR; installing it with multiarch would bring the target's libc
+# into /lib/<triple>, where QEMU's loader finds it before the cross toolchain's). The headers are
+# the host's: they do not depend on the architecture.
 find_path(BLOCKMAP_GEOGRAPHICLIB_INCLUDE_DIR GeographicLib/LocalCartesian.hpp PATHS /usr/include
           NO_CMAKE_FIND_ROOT_PATH REQUIRED)
 add_library(blockmap_geographiclib INTERFACE)
 if(CMAKE_CROSSCOMPILING)
-  set(geographiclib_so /usr/lib/${BLOCKMAP_TARGET_TRIPLE}/libGeographicLib.so.23)
+  if(DEFINED ENV{BLOCKMAP_TARGET_LIBS})
+    set(default_target_libs "$ENV{BLOCKMAP_TARGET_LIBS}")
+  elseif(DEFINED ENV{XDG_CACHE_HOME})
+    set(default_target_libs "$ENV{XDG_CACHE_HOME}/blockmap/target-libs")
+  else()
+    set(default_target_libs "$ENV{HOME}/.cache/blockmap/target-libs")
+  endif()
+  set(BLOCKMAP_TARGET_LIBS_DIR "${default_target_libs}" CACHE PATH
+      "where scripts/install-deps unpacks the cross builds' target libraries")
+  set(geographiclib_so
+      ${BLOCKMAP_TARGET_LIBS_DIR}/${BLOCKMAP_TARGET_DEB_ARCH}/usr/lib/${BLOCKMAP_TARGET_TRIPLE}/libGeographicLib.so.23)
   if(NOT EXISTS ${geographiclib_so})
     message(FATAL_ERROR "${geographiclib_so} is missing: run scripts/install-deps test")
   endif()

@@ -12,5 +12,7 @@ set(CMAKE_FIND_ROOT_PATH_MODE_INCLUDE ONLY)
 set(CMAKE_FIND_ROOT_PATH_MODE_PACKAGE BOTH)
 set(CMAKE_CROSSCOMPILING_EMULATOR qemu-aarch64-static -L /usr/aarch64-linux-gnu)
 set(BLOCKMAP_TARGET_LABEL aarch64 CACHE STRING "ctest label of the aarch64 tests")
-# Debian's multiarch folder of target libraries installed with `apt-get install <pkg>:<arch>`.
+# Debian's names for the target: its multiarch triple and its package architecture (target
+# libraries are unpacked from <pkg>_<version>_<arch>.deb by scripts/install-deps).
 set(BLOCKMAP_TARGET_TRIPLE aarch64-linux-gnu)
+set(BLOCKMAP_TARGET_DEB_ARCH arm64)

@@ -12,5 +12,7 @@ set(CMAKE_FIND_ROOT_PATH_MODE_INCLUDE ONLY)
 set(CMAKE_FIND_ROOT_PATH_MODE_PACKAGE BOTH)
 set(CMAKE_CROSSCOMPILING_EMULATOR qemu-arm-static -L /usr/arm-linux-gnueabihf)
 set(BLOCKMAP_TARGET_LABEL armhf CACHE STRING "ctest label of the armhf tests")
-# Debian's multiarch folder of target libraries installed with `apt-get install <pkg>:<arch>`.
+# Debian's names for the target: its multiarch triple and its package architecture (target
+# libraries are unpacked from <pkg>_<version>_<arch>.deb by scripts/install-deps).
 set(BLOCKMAP_TARGET_TRIPLE arm-linux-gnueabihf)
+set(BLOCKMAP_TARGET_DEB_ARCH armhf)

@@ -9,8 +9,8 @@
 #include <iostream>
 #include <iterator>
 #include <memory>
-#include <span>
 #include <ostream>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -43,7 +43,8 @@ bool unpack_byte_log(Capture& capture, std::ostream& err) {
   namespace byte_log = hal::protocol::byte_log;
   std::vector<std::uint8_t> file;
   file.swap(capture.bytes);
-  const std::span<const std::uint8_t> records = std::span<const std::uint8_t>(file).subspan(byte_log::kMagic.size());
+  const std::span<const std::uint8_t> records =
+      std::span<const std::uint8_t>(file).subspan(byte_log::kMagic.size());
   byte_log::Reader reader(records);
   byte_log::Record record;
   capture.timed = true;

@@ -50,17 +50,19 @@ int simulate(const SimulateOptions& options, std::ostream& err) {
   const auto wall_start = std::chrono::steady_clock::now();
   hal::sim::Simulation simulation(world, robot, sim_options);
   hal::sim::RunRecorder recorder(options.out, simulation);
-  recorder.write_text_file("world.toml", config_text(hal::sim::builtin_world_text(options.world), options.world));
-  recorder.write_text_file("robot.toml", config_text(hal::sim::builtin_robot_text(options.robot), options.robot));
+  recorder.write_text_file("world.toml",
+                           config_text(hal::sim::builtin_world_text(options.world), options.world));
+  recorder.write_text_file("robot.toml",
+                           config_text(hal::sim::builtin_robot_text(options.robot), options.robot));
   simulation.run(recorder);
   recorder.finish(options.seed);
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
 
   const hal::sim::SimStats& stats = simulation.stats();
-  err << "simulate: " << world.name << " seed " << options.seed << ": "
-      << simulation.elapsed_s() << " s, " << simulation.motion().distance_m() << " m driven, in "
-      << wall_s << " s (" << simulation.elapsed_s() / wall_s << "x real time); ";
+  err << "simulate: " << world.name << " seed " << options.seed << ": " << simulation.elapsed_s()
+      << " s, " << simulation.motion().distance_m() << " m driven, in " << wall_s << " s ("
+      << simulation.elapsed_s() / wall_s << "x real time); ";
   for (std::size_t i = 0; i < robot.lasers.size(); ++i) {
     err << "laser " << robot.lasers[i].name << ' ' << stats.scans_sent[i] << " scans, ";
   }
@@ -72,23 +74,29 @@ int simulate(const SimulateOptions& options, std::ostream& err) {
 }  // namespace
 
 Command add_simulate_command(CLI::App& app) {
-  CLI::App* command = app.add_subcommand(
-      "simulate", "Record a run of the simulated robot through a simulated city block: raw "
-                  "device logs and truth.json");
+  CLI::App* command =
+      app.add_subcommand("simulate",
+                         "Record a run of the simulated robot through a simulated city block: raw "
+                         "device logs and truth.json");
   auto options = std::make_shared<SimulateOptions>();
   std::string worlds;
   for (const std::string_view name : hal::sim::builtin_world_names()) {
     worlds += worlds.empty() ? "" : ", ";
     worlds += name;
   }
-  command->add_option("--world", options->world, "a built-in world (" + worlds + ") or a world .toml file")
+  command
+      ->add_option("--world", options->world,
+                   "a built-in world (" + worlds + ") or a world .toml file")
       ->required();
-  command->add_option("--robot", options->robot, "a built-in robot (paper_rmp) or a robot .toml file")
+  command
+      ->add_option("--robot", options->robot, "a built-in robot (paper_rmp) or a robot .toml file")
       ->capture_default_str();
-  command->add_option("--seed", options->seed, "the run's random seed: the same seed, the same bytes")
+  command
+      ->add_option("--seed", options->seed, "the run's random seed: the same seed, the same bytes")
       ->capture_default_str();
-  command->add_option("--duration-s", options->duration_s,
-                      "stop after this much simulated time (0: drive the whole path)")
+  command
+      ->add_option("--duration-s", options->duration_s,
+                   "stop after this much simulated time (0: drive the whole path)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   command->add_option("--out", options->out, "the folder to write the logs into")->required();

@@ -28,7 +28,9 @@ void TableReader::fail(std::string_view key, std::string_view what) const {
   throw ConfigError(source_ + ": " + key_path(key) + ": " + std::string(what));
 }
 
-bool TableReader::has(std::string_view key) const { return table_->contains(key); }
+bool TableReader::has(std::string_view key) const {
+  return table_->contains(key);
+}
 
 const toml::node* TableReader::find(std::string_view key) {
   read_.emplace(key);
@@ -40,7 +42,8 @@ double TableReader::number(std::string_view key) {
   if (node == nullptr) {
     fail(key, "missing (a number is required)");
   }
-  if (const auto value = node->value<double>(); value && (node->is_floating_point() || node->is_integer())) {
+  if (const auto value = node->value<double>();
+      value && (node->is_floating_point() || node->is_integer())) {
     if (!std::isfinite(*value)) {
       fail(key, "must be a finite number");
     }
@@ -123,9 +126,8 @@ double TableReader::unix_time(std::string_view key) {
     fail(key, "not a calendar date");
   }
   const auto days = std::chrono::sys_days{day}.time_since_epoch().count();
-  return static_cast<double>(days) * 86400.0 + value.time.hour * 3600.0 +
-         value.time.minute * 60.0 + value.time.second + value.time.nanosecond * 1e-9 -
-         value.offset->minutes * 60.0;
+  return static_cast<double>(days) * 86400.0 + value.time.hour * 3600.0 + value.time.minute * 60.0 +
+         value.time.second + value.time.nanosecond * 1e-9 - value.offset->minutes * 60.0;
 }
 
 Eigen::Vector2d TableReader::vec2(std::string_view key) {
@@ -138,7 +140,7 @@ Eigen::Vector2d TableReader::vec2(std::string_view key) {
       !(*array)[1].is_number()) {
     fail(key, "expected [x, y] (two numbers)");
   }
-  const Eigen::Vector2d value(*(*array)[0].value<double>(), *(*array)[1].value<double>());
+  Eigen::Vector2d value(*(*array)[0].value<double>(), *(*array)[1].value<double>());
   if (!value.allFinite()) {
     fail(key, "must be finite");
   }
@@ -155,8 +157,8 @@ Eigen::Vector3d TableReader::vec3(std::string_view key) {
       !(*array)[1].is_number() || !(*array)[2].is_number()) {
     fail(key, "expected [x, y, z] (three numbers)");
   }
-  const Eigen::Vector3d value(*(*array)[0].value<double>(), *(*array)[1].value<double>(),
-                              *(*array)[2].value<double>());
+  Eigen::Vector3d value(*(*array)[0].value<double>(), *(*array)[1].value<double>(),
+                        *(*array)[2].value<double>());
   if (!value.allFinite()) {
     fail(key, "must be finite");
   }

@@ -51,9 +51,9 @@ class TableReader {
   [[nodiscard]] std::vector<TableReader> tables(std::string_view key);
 
   // Value checks that name the key.
-  double positive(std::string_view key, double value) const;
-  double non_negative(std::string_view key, double value) const;
-  double in_range(std::string_view key, double value, double low, double high) const;
+  [[nodiscard]] double positive(std::string_view key, double value) const;
+  [[nodiscard]] double non_negative(std::string_view key, double value) const;
+  [[nodiscard]] double in_range(std::string_view key, double value, double low, double high) const;
 
   // Throws for the first key that was never read.
   void finish() const;

@@ -61,7 +61,7 @@ ParseError Reader::next(Record& record) noexcept {
   if (rest_.size() < kRecordHeaderBytes) {
     return ParseError::kTruncatedHeader;
   }
-  const std::uint64_t length = read_le(rest_.subspan(8, 4));
+  const auto length = static_cast<std::uint32_t>(read_le(rest_.subspan(8, 4)));
   if (rest_[12] > 1) {
     return ParseError::kBadDirection;
   }
@@ -75,7 +75,7 @@ ParseError Reader::next(Record& record) noexcept {
     return ParseError::kTruncatedData;
   }
   record.header.stamp_ns = static_cast<TimestampNs>(read_le(rest_.subspan(0, 8)));
-  record.header.length = static_cast<std::uint32_t>(length);
+  record.header.length = length;
   record.header.direction = static_cast<Direction>(rest_[12]);
   record.bytes = rest_.subspan(kRecordHeaderBytes, length);
   const std::size_t size = kRecordHeaderBytes + length;

@@ -1,8 +1,8 @@
 // NMEA 0183 sentence encoders (a simulated GNSS receiver's output). PROTOCOLS.md section 5
 // gives the field layouts; the decoder in nmea.cpp is their inverse.
 #include <algorithm>
-#include <cstdarg>
 #include <cmath>
+#include <cstdarg>
 #include <cstdio>
 #include <cstring>
 
@@ -60,7 +60,8 @@ bool append_angle(std::span<char> out, std::size_t& length, bool present, double
   const std::int64_t whole_degrees = units / 6000000;
   const std::int64_t minute_units = units % 6000000;
   return append(out, length, "%0*lld%02lld.%05lld,%c", degree_digits,
-                static_cast<long long>(whole_degrees), static_cast<long long>(minute_units / 100000),
+                static_cast<long long>(whole_degrees),
+                static_cast<long long>(minute_units / 100000),
                 static_cast<long long>(minute_units % 100000), hemisphere);
 }
 
@@ -96,8 +97,7 @@ std::size_t encode_gga(const msg::GpsFix& fix, std::string_view talker,
       append_angle(out, length, position, fix.longitude_deg, 3, 'E', 'W') &&
       append(out, length, ",%d,", quality) &&
       (!fix.has_satellites || append(out, length, "%02u", unsigned{fix.satellites_used})) &&
-      append_text(out, length, ",") &&
-      (!fix.has_hdop || append(out, length, "%.1f", fix.hdop)) &&
+      append_text(out, length, ",") && (!fix.has_hdop || append(out, length, "%.1f", fix.hdop)) &&
       append_text(out, length, ",") &&
       (!(position && fix.has_altitude) || append(out, length, "%.1f", fix.altitude_msl_m)) &&
       append_text(out, length, ",M,") &&
@@ -111,8 +111,7 @@ std::size_t encode_rmc(const msg::GpsFix& fix, std::string_view talker,
   std::size_t length = 0;
   const bool position = fix.has_position && fix.valid;
   bool ok = start(out, length, talker, "RMC") && append_text(out, length, ",") &&
-            append_time(out, length, fix) &&
-            append(out, length, ",%c,", fix.valid ? 'A' : 'V') &&
+            append_time(out, length, fix) && append(out, length, ",%c,", fix.valid ? 'A' : 'V') &&
             append_angle(out, length, position, fix.latitude_deg, 2, 'N', 'S') &&
             append_text(out, length, ",") &&
             append_angle(out, length, position, fix.longitude_deg, 3, 'E', 'W') &&
@@ -129,8 +128,7 @@ std::size_t encode_rmc(const msg::GpsFix& fix, std::string_view talker,
   return ok ? finish(out, length) : 0;
 }
 
-std::size_t encode_gsa(const GsaData& gsa, std::string_view talker,
-                       std::span<char> out) noexcept {
+std::size_t encode_gsa(const GsaData& gsa, std::string_view talker, std::span<char> out) noexcept {
   std::size_t length = 0;
   bool ok = start(out, length, talker, "GSA") &&
             append(out, length, ",%c,%u", gsa.automatic ? 'A' : 'M', unsigned{gsa.fix_type});

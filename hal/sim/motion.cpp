@@ -104,8 +104,9 @@ void RobotMotion::step() noexcept {
   // How fast: cruise, slower in turns, stopping at the end.
   double speed_demand = cruise_speed_mps_;
   if (std::abs(curvature) > 1e-6) {
-    speed_demand = std::min({speed_demand, std::sqrt(base_.max_lateral_accel_mps2 / std::abs(curvature)),
-                             base_.max_yaw_rate_radps / std::abs(curvature)});
+    speed_demand =
+        std::min({speed_demand, std::sqrt(base_.max_lateral_accel_mps2 / std::abs(curvature)),
+                  base_.max_yaw_rate_radps / std::abs(curvature)});
   }
   speed_demand = std::min(speed_demand, std::sqrt(2.0 * base_.max_decel_mps2 * remaining_m));
   if (std::abs(alpha) > std::numbers::pi / 2) {
@@ -115,7 +116,8 @@ void RobotMotion::step() noexcept {
                                   base_.max_accel_mps2);
   next.accel_mps2 = accel;
   next.speed_mps = std::max(0.0, now.speed_mps + accel * kStepS);
-  double yaw_rate = std::clamp(next.speed_mps * curvature, -base_.max_yaw_rate_radps, base_.max_yaw_rate_radps);
+  double yaw_rate =
+      std::clamp(next.speed_mps * curvature, -base_.max_yaw_rate_radps, base_.max_yaw_rate_radps);
   if (next.speed_mps < 0.05 && std::abs(alpha) > 0.3 && remaining_m > 0.5) {
     yaw_rate = std::copysign(base_.max_yaw_rate_radps * 0.5, alpha);  // the RMP turns in place
   }
@@ -136,8 +138,10 @@ void RobotMotion::step() noexcept {
   const Vec2 forward(std::cos(next.yaw_rad), std::sin(next.yaw_rad));
   const Vec2 ahead = next.position_m.head<2>() + 0.1 * forward;
   const Vec2 behind = next.position_m.head<2>() - 0.1 * forward;
-  const double slope = (terrain_.height_m(ahead.x(), ahead.y()) - terrain_.height_m(behind.x(), behind.y())) / 0.2;
-  const double pitch_demand = base_.pitch_per_accel_rad_per_mps2 * accel - base_.bump_pitch_gain * slope;
+  const double slope =
+      (terrain_.height_m(ahead.x(), ahead.y()) - terrain_.height_m(behind.x(), behind.y())) / 0.2;
+  const double pitch_demand =
+      base_.pitch_per_accel_rad_per_mps2 * accel - base_.bump_pitch_gain * slope;
   const double omega = 2.0 * std::numbers::pi * base_.pitch_natural_frequency_hz;
   const double pitch_accel = omega * omega * (pitch_demand - now.pitch_rad) -
                              2.0 * base_.pitch_damping_ratio * omega * now.pitch_rate_radps;
@@ -158,8 +162,9 @@ void RobotMotion::advance_to(double t_s) noexcept {
 
 RobotState RobotMotion::state_at(double t_s) const {
   const std::size_t oldest = (latest_index_ + kHistory + 1 - count_) % kHistory;
-  BLOCKMAP_CHECK_MSG(t_s >= history_[oldest].t_s - 1e-9 && t_s <= history_[latest_index_].t_s + 1e-9,
-                     "state_at: time outside the kept history");
+  BLOCKMAP_CHECK_MSG(
+      t_s >= history_[oldest].t_s - 1e-9 && t_s <= history_[latest_index_].t_s + 1e-9,
+      "state_at: time outside the kept history");
   // States are kStepS apart: index arithmetic, no search.
   const double offset = (t_s - history_[oldest].t_s) / kStepS;
   const auto steps = std::min(static_cast<std::size_t>(std::max(offset, 0.0)), count_ - 1);

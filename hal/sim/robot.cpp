@@ -55,27 +55,43 @@ BaseSpec parse_base(TableReader& root) {
   }
   TableReader& t = *table;
   base.track_m = t.in_range("track_m", t.number_or("track_m", base.track_m), 0.1, 3.0);
-  base.wheel_radius_m = t.in_range("wheel_radius_m", t.number_or("wheel_radius_m", base.wheel_radius_m), 0.05, 1.0);
-  base.max_accel_mps2 = t.positive("max_accel_mps2", t.number_or("max_accel_mps2", base.max_accel_mps2));
-  base.max_decel_mps2 = t.positive("max_decel_mps2", t.number_or("max_decel_mps2", base.max_decel_mps2));
-  base.max_lateral_accel_mps2 =
-      t.positive("max_lateral_accel_mps2", t.number_or("max_lateral_accel_mps2", base.max_lateral_accel_mps2));
-  base.max_yaw_rate_radps = t.positive("max_yaw_rate_degps", degrees_or(t, "max_yaw_rate_degps", base.max_yaw_rate_radps));
-  base.lookahead_m = t.in_range("lookahead_m", t.number_or("lookahead_m", base.lookahead_m), 0.2, 20.0);
-  base.pitch_per_accel_rad_per_mps2 = degrees_or(t, "pitch_per_accel_deg_per_mps2", base.pitch_per_accel_rad_per_mps2);
+  base.wheel_radius_m =
+      t.in_range("wheel_radius_m", t.number_or("wheel_radius_m", base.wheel_radius_m), 0.05, 1.0);
+  base.max_accel_mps2 =
+      t.positive("max_accel_mps2", t.number_or("max_accel_mps2", base.max_accel_mps2));
+  base.max_decel_mps2 =
+      t.positive("max_decel_mps2", t.number_or("max_decel_mps2", base.max_decel_mps2));
+  base.max_lateral_accel_mps2 = t.positive(
+      "max_lateral_accel_mps2", t.number_or("max_lateral_accel_mps2", base.max_lateral_accel_mps2));
+  base.max_yaw_rate_radps = t.positive(
+      "max_yaw_rate_degps", degrees_or(t, "max_yaw_rate_degps", base.max_yaw_rate_radps));
+  base.lookahead_m =
+      t.in_range("lookahead_m", t.number_or("lookahead_m", base.lookahead_m), 0.2, 20.0);
+  base.pitch_per_accel_rad_per_mps2 =
+      degrees_or(t, "pitch_per_accel_deg_per_mps2", base.pitch_per_accel_rad_per_mps2);
   base.pitch_natural_frequency_hz = t.in_range(
-      "pitch_natural_frequency_hz", t.number_or("pitch_natural_frequency_hz", base.pitch_natural_frequency_hz), 0.1, 20.0);
+      "pitch_natural_frequency_hz",
+      t.number_or("pitch_natural_frequency_hz", base.pitch_natural_frequency_hz), 0.1, 20.0);
   base.pitch_damping_ratio =
-      t.in_range("pitch_damping_ratio", t.number_or("pitch_damping_ratio", base.pitch_damping_ratio), 0.05, 5.0);
-  base.bump_pitch_gain = t.non_negative("bump_pitch_gain", t.number_or("bump_pitch_gain", base.bump_pitch_gain));
-  base.left_scale_error = t.in_range("left_scale_error", t.number_or("left_scale_error", base.left_scale_error), -0.2, 0.2);
-  base.right_scale_error = t.in_range("right_scale_error", t.number_or("right_scale_error", base.right_scale_error), -0.2, 0.2);
-  base.slip_fraction = t.in_range("slip_fraction", t.number_or("slip_fraction", base.slip_fraction), 0.0, 0.5);
+      t.in_range("pitch_damping_ratio",
+                 t.number_or("pitch_damping_ratio", base.pitch_damping_ratio), 0.05, 5.0);
+  base.bump_pitch_gain =
+      t.non_negative("bump_pitch_gain", t.number_or("bump_pitch_gain", base.bump_pitch_gain));
+  base.left_scale_error = t.in_range(
+      "left_scale_error", t.number_or("left_scale_error", base.left_scale_error), -0.2, 0.2);
+  base.right_scale_error = t.in_range(
+      "right_scale_error", t.number_or("right_scale_error", base.right_scale_error), -0.2, 0.2);
+  base.slip_fraction =
+      t.in_range("slip_fraction", t.number_or("slip_fraction", base.slip_fraction), 0.0, 0.5);
   base.yaw_rate_bias_radps = degrees_or(t, "yaw_rate_bias_degps", base.yaw_rate_bias_radps);
-  base.yaw_rate_noise_radps = t.non_negative("yaw_rate_noise_degps", degrees_or(t, "yaw_rate_noise_degps", base.yaw_rate_noise_radps));
-  base.pitch_noise_rad = t.non_negative("pitch_noise_deg", degrees_or(t, "pitch_noise_deg", base.pitch_noise_rad));
-  base.roll_noise_rad = t.non_negative("roll_noise_deg", degrees_or(t, "roll_noise_deg", base.roll_noise_rad));
-  base.rate_noise_radps = t.non_negative("rate_noise_degps", degrees_or(t, "rate_noise_degps", base.rate_noise_radps));
+  base.yaw_rate_noise_radps = t.non_negative(
+      "yaw_rate_noise_degps", degrees_or(t, "yaw_rate_noise_degps", base.yaw_rate_noise_radps));
+  base.pitch_noise_rad =
+      t.non_negative("pitch_noise_deg", degrees_or(t, "pitch_noise_deg", base.pitch_noise_rad));
+  base.roll_noise_rad =
+      t.non_negative("roll_noise_deg", degrees_or(t, "roll_noise_deg", base.roll_noise_rad));
+  base.rate_noise_radps =
+      t.non_negative("rate_noise_degps", degrees_or(t, "rate_noise_degps", base.rate_noise_radps));
   t.finish();
   return base;
 }
@@ -98,8 +114,9 @@ lms::AngularVariant parse_variant(TableReader& table) {
   if (field == 100.0 && resolution == 0.25) {
     return lms::AngularVariant::k100DegQuarterDeg;
   }
-  table.fail("resolution_deg", "the LMS2xx scans 180 deg at 1 or 0.5 deg, or 100 deg at 1, 0.5 "
-                               "or 0.25 deg (field_deg, resolution_deg)");
+  table.fail("resolution_deg",
+             "the LMS2xx scans 180 deg at 1 or 0.5 deg, or 100 deg at 1, 0.5 "
+             "or 0.25 deg (field_deg, resolution_deg)");
 }
 
 // Mirror turns one scan needs: 1 at 1 deg, 2 at 0.5 deg, 4 at 0.25 deg (interlaced).
@@ -117,7 +134,8 @@ int turns_per_scan(lms::AngularVariant variant) {
 LaserSpec parse_laser(TableReader& table) {
   LaserSpec laser;
   laser.name = table.string("name");
-  if (laser.name.empty() || laser.name.find_first_not_of("abcdefghijklmnopqrstuvwxyz0123456789_") != std::string::npos) {
+  if (laser.name.empty() ||
+      laser.name.find_first_not_of("abcdefghijklmnopqrstuvwxyz0123456789_") != std::string::npos) {
     table.fail("name", "use lower-case letters, digits and '_' (it names the log file)");
   }
   const std::string protocol = table.string_or("protocol", "lms2xx");
@@ -141,7 +159,7 @@ LaserSpec parse_laser(TableReader& table) {
   } else if (units == "mm") {
     laser.units = lms::Units::kMm;
   } else {
-    table.fail("units", "expected \"cm\" or \"mm\"");
+    table.fail("units", R"(expected "cm" or "mm")");
   }
   const std::int64_t range_bits = table.integer_or("range_bits", 13);
   if (range_bits < 13 || range_bits > 15) {
@@ -163,11 +181,13 @@ LaserSpec parse_laser(TableReader& table) {
          << std::lround(1000.0 / laser.scan_rate_hz) << " ms: lower scan_rate_hz or raise baud";
     table.fail("scan_rate_hz", what.str());
   }
-  laser.range_noise_m = table.in_range("range_noise_m", table.number_or("range_noise_m", laser.range_noise_m), 0.0, 1.0);
+  laser.range_noise_m = table.in_range(
+      "range_noise_m", table.number_or("range_noise_m", laser.range_noise_m), 0.0, 1.0);
   laser.missing_return_probability = table.in_range(
-      "missing_return_probability", table.number_or("missing_return_probability", laser.missing_return_probability), 0.0, 1.0);
-  laser.read_interval_s =
-      table.in_range("read_interval_s", table.number_or("read_interval_s", laser.read_interval_s), 1e-4, 0.1);
+      "missing_return_probability",
+      table.number_or("missing_return_probability", laser.missing_return_probability), 0.0, 1.0);
+  laser.read_interval_s = table.in_range(
+      "read_interval_s", table.number_or("read_interval_s", laser.read_interval_s), 1e-4, 0.1);
   table.finish();
   return laser;
 }
@@ -197,17 +217,23 @@ GpsSpec parse_gps(TableReader& root) {
   if (gps.talker.size() != 2) {
     t.fail("talker", "must be two characters (GP, GN, ...)");
   }
-  gps.horizontal_error_rms_m = t.non_negative("horizontal_error_rms_m", t.number_or("horizontal_error_rms_m", gps.horizontal_error_rms_m));
-  gps.vertical_error_rms_m = t.non_negative("vertical_error_rms_m", t.number_or("vertical_error_rms_m", gps.vertical_error_rms_m));
-  gps.correlation_time_s = t.positive("correlation_time_s", t.number_or("correlation_time_s", gps.correlation_time_s));
+  gps.horizontal_error_rms_m = t.non_negative(
+      "horizontal_error_rms_m", t.number_or("horizontal_error_rms_m", gps.horizontal_error_rms_m));
+  gps.vertical_error_rms_m = t.non_negative(
+      "vertical_error_rms_m", t.number_or("vertical_error_rms_m", gps.vertical_error_rms_m));
+  gps.correlation_time_s =
+      t.positive("correlation_time_s", t.number_or("correlation_time_s", gps.correlation_time_s));
   gps.latency_s = t.in_range("latency_s", t.number_or("latency_s", gps.latency_s), 0.0, 1.0);
-  gps.hdop_open_sky = t.in_range("hdop_open_sky", t.number_or("hdop_open_sky", gps.hdop_open_sky), 0.5, 20.0);
+  gps.hdop_open_sky =
+      t.in_range("hdop_open_sky", t.number_or("hdop_open_sky", gps.hdop_open_sky), 0.5, 20.0);
   gps.satellites = static_cast<int>(t.integer_or("satellites", gps.satellites));
   if (gps.satellites < 4 || gps.satellites > 12) {
     t.fail("satellites", "must lie in [4, 12]");
   }
-  gps.elevation_mask_deg = t.in_range("elevation_mask_deg", t.number_or("elevation_mask_deg", gps.elevation_mask_deg), 0.0, 45.0);
-  gps.read_interval_s = t.in_range("read_interval_s", t.number_or("read_interval_s", gps.read_interval_s), 1e-4, 1.0);
+  gps.elevation_mask_deg = t.in_range(
+      "elevation_mask_deg", t.number_or("elevation_mask_deg", gps.elevation_mask_deg), 0.0, 45.0);
+  gps.read_interval_s =
+      t.in_range("read_interval_s", t.number_or("read_interval_s", gps.read_interval_s), 1e-4, 1.0);
   t.finish();
   return gps;
 }
@@ -253,8 +279,8 @@ std::string_view builtin_robot_text(std::string_view name) noexcept {
 }
 
 RobotSpec load_robot(std::string_view name_or_path) {
-  const bool is_path = name_or_path.find('/') != std::string_view::npos ||
-                       name_or_path.ends_with(".toml");
+  const bool is_path =
+      name_or_path.find('/') != std::string_view::npos || name_or_path.ends_with(".toml");
   if (!is_path) {
     const std::string_view text = builtin_robot_text(name_or_path);
     if (text.empty()) {

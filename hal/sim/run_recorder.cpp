@@ -4,6 +4,7 @@
 #include <cinttypes>
 #include <cmath>
 #include <stdexcept>
+#include <utility>
 
 #include "blockmap/hal/protocol/candump.hpp"
 
@@ -12,12 +13,14 @@ namespace {
 
 constexpr std::size_t kFileBufferBytes = 1 << 16;
 
-double unix_seconds(TimestampNs stamp_ns) { return static_cast<double>(stamp_ns) * 1e-9; }
+double unix_seconds(TimestampNs stamp_ns) {
+  return static_cast<double>(stamp_ns) * 1e-9;
+}
 
 }  // namespace
 
-RunRecorder::RunRecorder(const std::filesystem::path& folder, const Simulation& simulation)
-    : folder_(folder), simulation_(simulation) {
+RunRecorder::RunRecorder(std::filesystem::path folder, const Simulation& simulation)
+    : folder_(std::move(folder)), simulation_(simulation) {
   std::error_code error;
   std::filesystem::create_directories(folder_, error);
   if (error) {
@@ -114,11 +117,11 @@ void RunRecorder::on_truth_state(TimestampNs stamp_ns, const RobotState& state) 
 }
 
 void RunRecorder::on_gps_epoch(const GpsTruth& truth) {
-  const int length = std::fprintf(
-      truth_gps_.handle, "%.6f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%.2f,%d\n",
-      unix_seconds(truth.epoch_ns), truth.antenna_m.x(), truth.antenna_m.y(), truth.antenna_m.z(),
-      truth.error_m.x(), truth.error_m.y(), truth.error_m.z(), truth.satellites_visible, truth.hdop,
-      truth.fix ? 1 : 0);
+  const int length =
+      std::fprintf(truth_gps_.handle, "%.6f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%.2f,%d\n",
+                   unix_seconds(truth.epoch_ns), truth.antenna_m.x(), truth.antenna_m.y(),
+                   truth.antenna_m.z(), truth.error_m.x(), truth.error_m.y(), truth.error_m.z(),
+                   truth.satellites_visible, truth.hdop, truth.fix ? 1 : 0);
   failed_ = failed_ || length < 0;
 }
 
@@ -143,8 +146,8 @@ void RunRecorder::finish(std::uint64_t seed) {
     } else {
       std::fprintf(out, "null");
     }
-    std::fprintf(out, ", \"normal\": [%.6f, %.6f, %.6f], \"d\": %.4f, \"corners\": [",
-                 face.normal.x(), face.normal.y(), face.normal.z(), face.d_m);
+    std::fprintf(out, R"(, "normal": [%.6f, %.6f, %.6f], "d": %.4f, "corners": [)", face.normal.x(),
+                 face.normal.y(), face.normal.z(), face.d_m);
     for (std::size_t c = 0; c < face.corners_m.size(); ++c) {
       const Vec3& p = face.corners_m[c];
       std::fprintf(out, "%s[%.4f, %.4f, %.4f]", c == 0 ? "" : ", ", p.x(), p.y(), p.z());

@@ -105,15 +105,18 @@ Scene::Scene(const World& world, std::uint64_t seed)
   }
   for (const Tree& tree : world_.trees) {
     const double base = terrain_.height_m(tree.position_m.x(), tree.position_m.y());
-    Cylinder trunk{tree.position_m, tree.trunk_radius_m, base - 0.5, base + tree.trunk_height_m,
+    Cylinder trunk{tree.position_m,     tree.trunk_radius_m,
+                   base - 0.5,          base + tree.trunk_height_m,
                    SurfaceKind::kTrunk, -1};
     cylinders_.push_back(trunk);
     add(Type::kCylinder, cylinders_.size() - 1,
         {Vec3(tree.position_m.x(), tree.position_m.y(), (trunk.z0 + trunk.z1) / 2),
          Vec3(tree.trunk_radius_m, tree.trunk_radius_m, (trunk.z1 - trunk.z0) / 2)});
     if (tree.canopy_radius_m > 0.0 && tree.canopy_density_per_m > 0.0) {
-      const Vec3 centre(tree.position_m.x(), tree.position_m.y(), base + tree.canopy_centre_height_m);
-      ellipsoids_.push_back({centre, Vec3::Constant(1.0 / tree.canopy_radius_m), tree.canopy_density_per_m});
+      const Vec3 centre(tree.position_m.x(), tree.position_m.y(),
+                        base + tree.canopy_centre_height_m);
+      ellipsoids_.push_back(
+          {centre, Vec3::Constant(1.0 / tree.canopy_radius_m), tree.canopy_density_per_m});
       add(Type::kEllipsoid, ellipsoids_.size() - 1, {centre, Vec3::Constant(tree.canopy_radius_m)});
     }
   }
@@ -145,8 +148,8 @@ Scene::Scene(const World& world, std::uint64_t seed)
   }
   for (std::size_t p = 0; p < world_.people.size(); ++p) {
     const Person& person = world_.people[p];
-    cylinders_.push_back({person.from_m, person.radius_m, -1.0, person.height_m, SurfaceKind::kPerson,
-                          static_cast<int>(p)});
+    cylinders_.push_back({person.from_m, person.radius_m, -1.0, person.height_m,
+                          SurfaceKind::kPerson, static_cast<int>(p)});
     const Vec2 low = person.from_m.cwiseMin(person.to_m) - Vec2::Constant(person.radius_m);
     const Vec2 high = person.from_m.cwiseMax(person.to_m) + Vec2::Constant(person.radius_m);
     add(Type::kCylinder, cylinders_.size() - 1,

@@ -24,7 +24,8 @@ bool SerialWire::send(std::span<const std::uint8_t> bytes, TimestampNs earliest_
   if (returned_ > 0) {
     const std::size_t keep = unread_ - returned_;
     std::copy_n(buffer_.begin() + static_cast<std::ptrdiff_t>(returned_), keep, buffer_.begin());
-    std::copy_n(start_ns_.begin() + static_cast<std::ptrdiff_t>(returned_), keep, start_ns_.begin());
+    std::copy_n(start_ns_.begin() + static_cast<std::ptrdiff_t>(returned_), keep,
+                start_ns_.begin());
     std::copy_n(index_.begin() + static_cast<std::ptrdiff_t>(returned_), keep, index_.begin());
     unread_ = keep;
     returned_ = 0;

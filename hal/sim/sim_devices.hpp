@@ -83,6 +83,7 @@ class SimLms {
   double range_max_m_ = 80.0;
   bool started_ = false;
   std::uint64_t next_scan_ = 0;
+  std::array<Vec3, 401> beam_directions_{};  // in the sensor frame, by beam
   std::array<std::uint16_t, 401> values_{};
   std::array<std::uint8_t, protocol::sick_lms2xx::kMaxTelegramBytes> telegram_{};
 };

@@ -129,8 +129,8 @@ void SimGps::make_epoch(SimContext& context, SimSink& sink, SimStats& stats) {
   }
   truth.satellites_visible = gsa.satellite_count;
   truth.fix = truth.satellites_visible >= 4;
-  truth.hdop = truth.fix ? spec_.hdop_open_sky *
-                               std::sqrt(static_cast<double>(satellites_.size()) / truth.satellites_visible)
+  truth.hdop = truth.fix ? spec_.hdop_open_sky * std::sqrt(static_cast<double>(satellites_.size()) /
+                                                           truth.satellites_visible)
                          : 99.9;
   // Fewer satellites, worse geometry: the error grows with the HDOP.
   truth.error_m = error_m_ * (truth.fix ? truth.hdop / spec_.hdop_open_sky : 1.0);
@@ -185,7 +185,8 @@ void SimGps::make_epoch(SimContext& context, SimSink& sink, SimStats& stats) {
 
   const TimestampNs send_ns = epoch + static_cast<TimestampNs>(spec_.latency_s * 1e9);
   const auto send = [&](std::size_t length) {
-    (void)wire_.send(std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(sentence_.data()), length),
+    (void)wire_.send(std::span<const std::uint8_t>(
+                         reinterpret_cast<const std::uint8_t*>(sentence_.data()), length),
                      send_ns);
   };
   send(nmea::encode_gga(fix, spec_.talker, sentence_));

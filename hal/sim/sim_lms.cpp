@@ -16,9 +16,9 @@ namespace {
 namespace lms = protocol::sick_lms2xx;
 
 constexpr double kMirrorTurnS = 1.0 / 75.0;
-constexpr double kProcessingS = 0.001;     // from the last beam to the telegram's first byte
-constexpr double kRequestAtS = 0.001;      // the host's request, 1 ms into the run
-constexpr double kReplyDelayS = 0.002;     // the scanner's ACK after the request
+constexpr double kProcessingS = 0.001;      // from the last beam to the telegram's first byte
+constexpr double kRequestAtS = 0.001;       // the host's request, 1 ms into the run
+constexpr double kReplyDelayS = 0.002;      // the scanner's ACK after the request
 constexpr std::uint8_t kStatusByte = 0x10;  // bit 4 is set in every real reply (2.7)
 constexpr double kRadPerCentideg = std::numbers::pi / 18000.0;
 
@@ -28,9 +28,10 @@ SimLms::SimLms(const LaserSpec& spec, std::size_t device, std::uint64_t seed)
     : spec_(spec),
       device_(device),
       random_(seed, "laser_" + spec.name),
-      wire_(spec.baud, static_cast<TimestampNs>(spec.read_interval_s * 1e9), 4 * lms::kMaxTelegramBytes),
+      wire_(spec.baud, static_cast<TimestampNs>(spec.read_interval_s * 1e9),
+            4 * lms::kMaxTelegramBytes),
       geometry_(lms::geometry(spec.variant)) {
-  turns_per_scan_ = static_cast<int>(std::lround(geometry_.resolution_centideg == 50 ? 2
+  turns_per_scan_ = static_cast<int>(std::lround(geometry_.resolution_centideg == 50   ? 2
                                                  : geometry_.resolution_centideg == 25 ? 4
                                                                                        : 1));
   const double max_rate = 75.0 / turns_per_scan_;
@@ -39,6 +40,11 @@ SimLms::SimLms(const LaserSpec& spec, std::size_t device, std::uint64_t seed)
   // The mirror's phase is not tied to the run's start; the first scan follows the handshake.
   first_turn_s_ = 0.02 + random_.uniform(0.0, kMirrorTurnS);
   range_max_m_ = lms::range_max_m(spec.units, spec.range_bits);
+  const double start_angle = -geometry_.field_deg * std::numbers::pi / 360.0;
+  for (std::uint16_t i = 0; i < geometry_.value_count; ++i) {
+    const double angle = start_angle + i * geometry_.resolution_centideg * kRadPerCentideg;
+    beam_directions_[i] = Vec3(std::cos(angle), std::sin(angle), 0.0);
+  }
 }
 
 TimestampNs SimLms::scan_start_ns(const SimContext& context, std::uint64_t scan) const {
@@ -129,10 +135,11 @@ void SimLms::measure_scan(SimContext& context, SimSink& sink, SimStats& stats) {
     const double t_s = start_s + (i % turns_per_scan_) * turn_s_ +
                        (angle + std::numbers::pi / 2.0) / (2.0 * std::numbers::pi) * turn_s_;
     const double f = span_s > 0.0 ? std::clamp((t_s - start_s) / span_s, 0.0, 1.0) : 0.0;
-    const Vec3 beam_sensor(std::cos(angle), std::sin(angle), 0.0);
+    const Vec3& beam_sensor = beam_directions_[i];
     const Vec3 origin = origin_first + f * (origin_last - origin_first);
     const Vec3 direction =
-        (rotation_first * beam_sensor + f * (rotation_last - rotation_first) * beam_sensor).normalized();
+        (rotation_first * beam_sensor + f * (rotation_last - rotation_first) * beam_sensor)
+            .normalized();
     truth.stamp_ns = context.stamp(t_s);
     truth.beam = i;
     truth.origin_m = origin;

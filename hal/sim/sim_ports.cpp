@@ -45,7 +45,8 @@ ReadResult SimSerialPort::do_read(std::span<std::uint8_t> buffer, TimestampNs /*
   return {IoStatus::kOk, count, stamp};
 }
 
-WriteResult SimSerialPort::do_write(std::span<const std::uint8_t> bytes, TimestampNs /*timeout_ns*/) {
+WriteResult SimSerialPort::do_write(std::span<const std::uint8_t> bytes,
+                                    TimestampNs /*timeout_ns*/) {
   for (const std::uint8_t byte : bytes) {
     written_.push_overwrite(byte);
   }

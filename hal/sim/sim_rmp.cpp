@@ -71,8 +71,8 @@ void SimRmp::make_cycle(SimContext& context, SimSink& sink, TimestampNs cycle_ns
   imu.roll_rad = state.roll_rad + random_.gaussian(base_.roll_noise_rad);
   imu.pitch_rate_radps = state.pitch_rate_radps + random_.gaussian(base_.rate_noise_radps);
   imu.roll_rate_radps = state.roll_rate_radps + random_.gaussian(base_.rate_noise_radps);
-  imu.yaw_rate_radps =
-      state.yaw_rate_radps + base_.yaw_rate_bias_radps + random_.gaussian(base_.yaw_rate_noise_radps);
+  imu.yaw_rate_radps = state.yaw_rate_radps + base_.yaw_rate_bias_radps +
+                       random_.gaussian(base_.yaw_rate_noise_radps);
   // Each motor carries half the force that accelerates the robot.
   const double torque = 0.5 * kRobotMassKg * state.accel_mps2 * base_.wheel_radius_m;
   cycle.left_motor_torque_nm = torque;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include "blockmap/core/check.hpp"
 #include "sim_devices.hpp"
@@ -9,15 +10,16 @@
 namespace blockmap::hal::sim {
 
 struct Simulation::Impl {
-  Impl(const World& world_in, const RobotSpec& robot_in, const SimOptions& options_in)
-      : world(world_in),
-        robot(robot_in),
+  Impl(World world_in, RobotSpec robot_in, const SimOptions& options_in)
+      : world(std::move(world_in)),
+        robot(std::move(robot_in)),
         options(options_in),
         scene(world, options.seed),
         motion(robot.base, world.path, scene.terrain()),
         rmp(robot.base, options.seed),
         gps(robot.gps, world.site, robot.lasers.size(), options.seed),
-        context{scene, motion, static_cast<TimestampNs>(std::llround(world.site.start_unix_s * 1e9)),
+        context{scene, motion,
+                static_cast<TimestampNs>(std::llround(world.site.start_unix_s * 1e9)),
                 detail::kNever} {
     lasers.reserve(robot.lasers.size());
     for (std::size_t i = 0; i < robot.lasers.size(); ++i) {
@@ -38,7 +40,8 @@ struct Simulation::Impl {
       return;
     }
     stop_seen = true;
-    context.end_ns = std::min(context.end_ns, context.stamp(motion.latest().t_s + options.hold_after_stop_s));
+    context.end_ns =
+        std::min(context.end_ns, context.stamp(motion.latest().t_s + options.hold_after_stop_s));
   }
 
   World world;
@@ -103,17 +106,37 @@ void Simulation::run(SimSink& sink) {
   }
 }
 
-TimestampNs Simulation::start_ns() const noexcept { return impl_->context.start_ns; }
-TimestampNs Simulation::now_ns() const noexcept { return impl_->now_ns; }
-double Simulation::elapsed_s() const noexcept { return impl_->context.seconds(impl_->now_ns); }
-bool Simulation::finished() const noexcept { return impl_->finished; }
-const Scene& Simulation::scene() const noexcept { return impl_->scene; }
-const RobotMotion& Simulation::motion() const noexcept { return impl_->motion; }
-const RobotSpec& Simulation::robot() const noexcept { return impl_->robot; }
-const World& Simulation::world() const noexcept { return impl_->world; }
-const SimStats& Simulation::stats() const noexcept { return impl_->stats; }
+TimestampNs Simulation::start_ns() const noexcept {
+  return impl_->context.start_ns;
+}
+TimestampNs Simulation::now_ns() const noexcept {
+  return impl_->now_ns;
+}
+double Simulation::elapsed_s() const noexcept {
+  return impl_->context.seconds(impl_->now_ns);
+}
+bool Simulation::finished() const noexcept {
+  return impl_->finished;
+}
+const Scene& Simulation::scene() const noexcept {
+  return impl_->scene;
+}
+const RobotMotion& Simulation::motion() const noexcept {
+  return impl_->motion;
+}
+const RobotSpec& Simulation::robot() const noexcept {
+  return impl_->robot;
+}
+const World& Simulation::world() const noexcept {
+  return impl_->world;
+}
+const SimStats& Simulation::stats() const noexcept {
+  return impl_->stats;
+}
 
-std::size_t Simulation::serial_device_count() const noexcept { return impl_->lasers.size() + 1; }
+std::size_t Simulation::serial_device_count() const noexcept {
+  return impl_->lasers.size() + 1;
+}
 
 std::string Simulation::serial_device_name(std::size_t device) const {
   if (device < impl_->robot.lasers.size()) {

@@ -34,8 +34,8 @@ std::vector<Vec2> shape_vertices(const FootprintParameters& p) {
     case BuildingShape::kT: {
       const double hs = p.stem_width_m / 2.0;
       const double bar_y = hw - p.bar_width_m;
-      return {{-hs, -hw}, {hs, -hw},  {hs, bar_y},  {hl, bar_y},
-              {hl, hw},   {-hl, hw},  {-hl, bar_y}, {-hs, bar_y}};
+      return {{-hs, -hw}, {hs, -hw}, {hs, bar_y},  {hl, bar_y},
+              {hl, hw},   {-hl, hw}, {-hl, bar_y}, {-hs, bar_y}};
     }
   }
   return {};
@@ -45,17 +45,17 @@ void check_footprint_parameters(const FootprintParameters& p) {
   if (!(p.length_m > 0.0 && p.width_m > 0.0)) {
     throw std::invalid_argument("length_m and width_m must be > 0");
   }
-  if (p.shape == BuildingShape::kL &&
-      !(p.notch_length_m > 0.0 && p.notch_length_m < p.length_m && p.notch_width_m > 0.0 &&
-        p.notch_width_m < p.width_m)) {
-    throw std::invalid_argument("an L needs 0 < notch_length_m < length_m and "
-                                "0 < notch_width_m < width_m");
+  if (p.shape == BuildingShape::kL && !(p.notch_length_m > 0.0 && p.notch_length_m < p.length_m &&
+                                        p.notch_width_m > 0.0 && p.notch_width_m < p.width_m)) {
+    throw std::invalid_argument(
+        "an L needs 0 < notch_length_m < length_m and "
+        "0 < notch_width_m < width_m");
   }
-  if (p.shape == BuildingShape::kT &&
-      !(p.bar_width_m > 0.0 && p.bar_width_m < p.width_m && p.stem_width_m > 0.0 &&
-        p.stem_width_m < p.length_m)) {
-    throw std::invalid_argument("a T needs 0 < bar_width_m < width_m and "
-                                "0 < stem_width_m < length_m");
+  if (p.shape == BuildingShape::kT && !(p.bar_width_m > 0.0 && p.bar_width_m < p.width_m &&
+                                        p.stem_width_m > 0.0 && p.stem_width_m < p.length_m)) {
+    throw std::invalid_argument(
+        "a T needs 0 < bar_width_m < width_m and "
+        "0 < stem_width_m < length_m");
   }
 }
 
@@ -70,7 +70,7 @@ BuildingShape parse_shape(TableReader& table) {
   if (name == "T") {
     return BuildingShape::kT;
   }
-  table.fail("shape", "expected \"rect\", \"L\" or \"T\", not \"" + name + "\"");
+  table.fail("shape", R"(expected "rect", "L" or "T", not ")" + name + "\"");
 }
 
 Building parse_building(TableReader& table, int default_id) {
@@ -102,12 +102,15 @@ Building parse_building(TableReader& table, int default_id) {
 
 Tree parse_tree_parameters(TableReader& table) {
   Tree tree;
-  tree.trunk_radius_m = table.positive("trunk_radius_m", table.number_or("trunk_radius_m", tree.trunk_radius_m));
-  tree.trunk_height_m = table.positive("trunk_height_m", table.number_or("trunk_height_m", tree.trunk_height_m));
-  tree.canopy_radius_m =
-      table.non_negative("canopy_radius_m", table.number_or("canopy_radius_m", tree.canopy_radius_m));
-  tree.canopy_centre_height_m = table.positive(
-      "canopy_centre_height_m", table.number_or("canopy_centre_height_m", tree.canopy_centre_height_m));
+  tree.trunk_radius_m =
+      table.positive("trunk_radius_m", table.number_or("trunk_radius_m", tree.trunk_radius_m));
+  tree.trunk_height_m =
+      table.positive("trunk_height_m", table.number_or("trunk_height_m", tree.trunk_height_m));
+  tree.canopy_radius_m = table.non_negative(
+      "canopy_radius_m", table.number_or("canopy_radius_m", tree.canopy_radius_m));
+  tree.canopy_centre_height_m =
+      table.positive("canopy_centre_height_m",
+                     table.number_or("canopy_centre_height_m", tree.canopy_centre_height_m));
   tree.canopy_density_per_m = table.non_negative(
       "canopy_density_per_m", table.number_or("canopy_density_per_m", tree.canopy_density_per_m));
   return tree;
@@ -169,7 +172,8 @@ Site parse_site(TableReader& world) {
     world.fail("site", "missing (latitude_deg, longitude_deg, height_m, start_utc)");
   }
   Site site;
-  site.origin.latitude_deg = table->in_range("latitude_deg", table->number("latitude_deg"), -89.0, 89.0);
+  site.origin.latitude_deg =
+      table->in_range("latitude_deg", table->number("latitude_deg"), -89.0, 89.0);
   site.origin.longitude_deg =
       table->in_range("longitude_deg", table->number("longitude_deg"), -180.0, 180.0);
   site.origin.height_m = table->number_or("height_m", 0.0);
@@ -186,8 +190,9 @@ Ground parse_ground(TableReader& world) {
     return ground;
   }
   ground.roughness_m = table->non_negative("roughness_m", table->number_or("roughness_m", 0.0));
-  ground.roughness_wavelength_m = table->positive(
-      "roughness_wavelength_m", table->number_or("roughness_wavelength_m", ground.roughness_wavelength_m));
+  ground.roughness_wavelength_m =
+      table->positive("roughness_wavelength_m",
+                      table->number_or("roughness_wavelength_m", ground.roughness_wavelength_m));
   ground.cell_m = table->in_range("cell_m", table->number_or("cell_m", ground.cell_m), 0.02, 1.0);
   for (TableReader& bump : table->tables("bumps")) {
     Bump b;
@@ -294,7 +299,8 @@ World parse_world(std::string_view toml_text, std::string_view source_name) {
     Person person;
     person.from_m = table.vec2("from_m");
     person.to_m = table.vec2("to_m");
-    person.speed_mps = table.in_range("speed_mps", table.number_or("speed_mps", person.speed_mps), 0.0, 5.0);
+    person.speed_mps =
+        table.in_range("speed_mps", table.number_or("speed_mps", person.speed_mps), 0.0, 5.0);
     person.radius_m = table.positive("radius_m", table.number_or("radius_m", person.radius_m));
     person.height_m = table.positive("height_m", table.number_or("height_m", person.height_m));
     world.people.push_back(person);
@@ -305,7 +311,9 @@ World parse_world(std::string_view toml_text, std::string_view source_name) {
   return world;
 }
 
-std::span<const std::string_view> builtin_world_names() noexcept { return kBuiltinWorldNames; }
+std::span<const std::string_view> builtin_world_names() noexcept {
+  return kBuiltinWorldNames;
+}
 
 std::string_view builtin_world_text(std::string_view name) noexcept {
   for (std::size_t i = 0; i < kBuiltinWorldNames.size(); ++i) {
@@ -317,8 +325,8 @@ std::string_view builtin_world_text(std::string_view name) noexcept {
 }
 
 World load_world(std::string_view name_or_path) {
-  const bool is_path = name_or_path.find('/') != std::string_view::npos ||
-                       name_or_path.ends_with(".toml");
+  const bool is_path =
+      name_or_path.find('/') != std::string_view::npos || name_or_path.ends_with(".toml");
   if (!is_path) {
     const std::string_view text = builtin_world_text(name_or_path);
     if (text.empty()) {

@@ -45,8 +45,7 @@ TEST(Scene, AWallIsHitAtItsDistanceAndCountedAsItsFace) {
   EXPECT_NEAR(face.d_m, -10.0, 1e-9);
   // Slanted: 10 / cos(30 deg).
   const double slant = std::numbers::pi / 6;
-  const Hit oblique =
-      scene.cast(origin, Vec3(std::sin(slant), std::cos(slant), 0.0), 80.0, random);
+  const Hit oblique = scene.cast(origin, Vec3(std::sin(slant), std::cos(slant), 0.0), 80.0, random);
   EXPECT_NEAR(oblique.range_m, 10.0 / std::cos(slant), 1e-9);
 }
 

@@ -45,7 +45,8 @@ class HashingSink final : public SimSink {
       add(frame.data[i]);
     }
   }
-  void on_serial(std::size_t device, TimestampNs stamp_ns, protocol::byte_log::Direction /*direction*/,
+  void on_serial(std::size_t device, TimestampNs stamp_ns,
+                 protocol::byte_log::Direction /*direction*/,
                  std::span<const std::uint8_t> bytes) override {
     add(device);
     add(stamp_ns);
@@ -85,8 +86,8 @@ class DecodingSink final : public SimSink {
       : frame_(simulation.world().site.origin),
         rmp_(rmp_config(simulation.robot())),
         lasers_(simulation.robot().lasers.size()) {
-    for (std::size_t i = 0; i < lasers_.size(); ++i) {
-      lasers_[i].decoder = std::make_unique<lms::Decoder>();
+    for (Laser& laser : lasers_) {
+      laser.decoder = std::make_unique<lms::Decoder>();
     }
   }
 
@@ -213,6 +214,19 @@ TEST(Simulation, ItsBytesDecodeBackToWhatWasSimulated) {
   EXPECT_NEAR(sink.cycles, 800, 2);
   EXPECT_GE(sink.scans, 2 * 8 * 75 - 10);
   EXPECT_GE(sink.fixes, 8 * 4 - 1);
+}
+
+TEST(Simulation, HalfDegreeScansInterlaceTwoMirrorTurnsAndMillimetreUnitsReachEightMetres) {
+  RobotSpec robot = load_robot("paper_rmp");
+  robot.lasers[0].variant = lms::AngularVariant::k180DegHalfDeg;
+  robot.lasers[0].scan_rate_hz = 37.5;
+  robot.lasers[1].units = lms::Units::kMm;  // 13 range bits in mm: 8.191 m at most
+  Simulation simulation(load_world("usc_block"), robot, options_for(4.0));
+  DecodingSink sink(simulation);
+  simulation.run(sink);
+  EXPECT_NEAR(static_cast<double>(simulation.stats().scans_sent[0]), 4 * 37.5, 2);
+  EXPECT_NEAR(static_cast<double>(simulation.stats().scans_sent[1]), 4 * 75.0, 2);
+  EXPECT_GT(sink.scans, 400);  // and every one decoded to its simulated ranges (in the sink)
 }
 
 // Every returned beam's point lies on the face it hit.
@@ -358,7 +372,7 @@ TEST(Simulation, GpsErrorStatisticsMatchTheConfiguration) {
   double sum_squares = 0.0;
   double lag_product = 0.0;
   double lag_count = 0.0;
-  const std::size_t lag = static_cast<std::size_t>(robot.gps.correlation_time_s * robot.gps.rate_hz);
+  const auto lag = static_cast<std::size_t>(robot.gps.correlation_time_s * robot.gps.rate_hz);
   for (std::size_t i = 0; i < sink.gps.size(); ++i) {
     ASSERT_TRUE(sink.gps[i].fix) << "open sky";
     sum_squares += sink.gps[i].error_m.head<2>().squaredNorm();
@@ -401,11 +415,12 @@ TEST(Simulation, TallBuildingsHideSatellitesAndCanLoseTheFix) {
 struct PortRig {
   explicit PortRig(const Simulation& simulation)
       : can(clock, {}, pending, sent),
-        base(can, odometry, imu, [&] {
-          devices::SegwayBaseConfig config;
-          config.rmp.model = simulation.robot().base.model;
-          return config;
-        }()),
+        base(can, odometry, imu,
+             [&] {
+               devices::SegwayBaseConfig config;
+               config.rmp.model = simulation.robot().base.model;
+               return config;
+             }()),
         horizontal(serial[0], scans, {}),
         vertical(serial[1], scans, {}),
         gps(serial[2], fixes, {}),

@@ -126,15 +126,17 @@ TEST(WorldFiles, MistakesNameTheKey) {
                         "[[buildings]]\nshape = \"oval\"\ncentre_m = [0.0, 0.0]\nlength_m = 10.0\n"
                         "width_m = 5.0\nheight_m = 3.0\n"),
             "test.toml: buildings[0].shape: expected \"rect\", \"L\" or \"T\", not \"oval\"");
-  EXPECT_EQ(world_error(kMinimalWorld +
-                        "[[buildings]]\nshape = \"L\"\ncentre_m = [0.0, 0.0]\nlength_m = 10.0\n"
-                        "width_m = 5.0\nheight_m = 3.0\nnotch_length_m = 12.0\nnotch_width_m = 2.0\n"),
-            "test.toml: buildings[0].shape: an L needs 0 < notch_length_m < length_m and "
-            "0 < notch_width_m < width_m");
+  EXPECT_EQ(
+      world_error(kMinimalWorld +
+                  "[[buildings]]\nshape = \"L\"\ncentre_m = [0.0, 0.0]\nlength_m = 10.0\n"
+                  "width_m = 5.0\nheight_m = 3.0\nnotch_length_m = 12.0\nnotch_width_m = 2.0\n"),
+      "test.toml: buildings[0].shape: an L needs 0 < notch_length_m < length_m and "
+      "0 < notch_width_m < width_m");
   EXPECT_EQ(world_error(kMinimalWorld + "[[trees]]\nposition_m = [1.0]\n"),
             "test.toml: trees[0].position_m: expected [x, y] (two numbers)");
-  EXPECT_EQ(world_error(kMinimalWorld + "[[trees]]\nposition_m = [1.0, 2.0]\ntrunk_radius_m = -1\n"),
-            "test.toml: trees[0].trunk_radius_m: must be > 0");
+  EXPECT_EQ(
+      world_error(kMinimalWorld + "[[trees]]\nposition_m = [1.0, 2.0]\ntrunk_radius_m = -1\n"),
+      "test.toml: trees[0].trunk_radius_m: must be > 0");
   EXPECT_EQ(world_error("name = \"x\"\n[site\n"),
             "test.toml:2:6: Error while parsing table header: expected ']', saw '\\n'");
 }

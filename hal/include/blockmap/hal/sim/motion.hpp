@@ -28,7 +28,7 @@ struct RobotState {
   double yaw_rate_radps = 0.0;
   double pitch_rate_radps = 0.0;
   double roll_rate_radps = 0.0;
-  double left_wheel_m = 0.0;   // true travel of each wheel since the start
+  double left_wheel_m = 0.0;  // true travel of each wheel since the start
   double right_wheel_m = 0.0;
 
   [[nodiscard]] Eigen::Matrix3d rotation() const;

@@ -45,9 +45,9 @@ struct BaseSpec {
   double pitch_damping_ratio = 0.55;
   double bump_pitch_gain = 0.6;  // rad of pitch demand per rad of ground slope
   // What the base reports, and how wrong it is.
-  double left_scale_error = 0.012;   // tyre pressure: reported distance = true * (1 + error)
+  double left_scale_error = 0.012;  // tyre pressure: reported distance = true * (1 + error)
   double right_scale_error = -0.006;
-  double slip_fraction = 0.01;       // random slip, a fraction of each wheel increment
+  double slip_fraction = 0.01;  // random slip, a fraction of each wheel increment
   double yaw_rate_bias_radps = 0.005;
   double yaw_rate_noise_radps = 0.01;
   double pitch_noise_rad = 0.003;
@@ -79,7 +79,7 @@ struct GpsSpec {
   double correlation_time_s = 60.0;
   double latency_s = 0.05;  // from the epoch to the first byte of its sentences
   double hdop_open_sky = 0.9;
-  int satellites = 10;      // the constellation above the site
+  int satellites = 10;  // the constellation above the site
   double elevation_mask_deg = 10.0;
   double read_interval_s = 0.01;
 };

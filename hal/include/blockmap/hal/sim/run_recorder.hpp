@@ -24,7 +24,7 @@ class RunRecorder final : public SimSink {
  public:
   // Creates `folder` if needed and opens every file; throws std::runtime_error naming the file
   // that cannot be written.
-  RunRecorder(const std::filesystem::path& folder, const Simulation& simulation);
+  RunRecorder(std::filesystem::path folder, const Simulation& simulation);
   ~RunRecorder() override;
   RunRecorder(const RunRecorder&) = delete;
   RunRecorder& operator=(const RunRecorder&) = delete;

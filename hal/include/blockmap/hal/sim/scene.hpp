@@ -17,7 +17,16 @@
 
 namespace blockmap::hal::sim {
 
-enum class SurfaceKind : std::uint8_t { kNone, kWall, kRoof, kGround, kTrunk, kFoliage, kCar, kPerson };
+enum class SurfaceKind : std::uint8_t {
+  kNone,
+  kWall,
+  kRoof,
+  kGround,
+  kTrunk,
+  kFoliage,
+  kCar,
+  kPerson
+};
 [[nodiscard]] const char* to_string(SurfaceKind kind) noexcept;
 
 // A planar face of the truth: normal . x = d, its corners, and the beams that returned from it.

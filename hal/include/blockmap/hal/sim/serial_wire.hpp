@@ -38,9 +38,9 @@ class SerialWire {
 
   TimestampNs byte_ns_;
   TimestampNs read_interval_ns_;
-  std::vector<std::uint8_t> buffer_;    // unread bytes first, then free room
-  std::vector<TimestampNs> start_ns_;   // per unread byte: when its telegram started
-  std::vector<std::uint32_t> index_;    // per unread byte: its index in its telegram
+  std::vector<std::uint8_t> buffer_;   // unread bytes first, then free room
+  std::vector<TimestampNs> start_ns_;  // per unread byte: when its telegram started
+  std::vector<std::uint32_t> index_;   // per unread byte: its index in its telegram
   std::size_t unread_ = 0;
   std::size_t returned_ = 0;  // bytes handed out by the last read, removed on the next call
   TimestampNs busy_until_ns_ = 0;

@@ -112,8 +112,8 @@ struct Path {
 };
 
 struct Site {
-  GeodeticPoint origin;        // the local frame's origin
-  double start_unix_s = 0.0;   // UTC of the run's first instant
+  GeodeticPoint origin;             // the local frame's origin
+  double start_unix_s = 0.0;        // UTC of the run's first instant
   double geoid_separation_m = 0.0;  // geoid above the ellipsoid here (NMEA GGA)
 };
 

@@ -1,0 +1,206 @@
+// `blockmap simulate` writes a robot's logs and the truth; `blockmap decode` on those logs gives
+// back what was simulated, within what each encoding can carry.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "blockmap/hal/geodesy.hpp"
+#include "cli.hpp"
+
+namespace blockmap::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Result {
+  int status;
+  std::string out;
+  std::string err;
+};
+
+Result run_cli(const std::vector<std::string>& args) {
+  std::vector<const char*> argv = {"blockmap"};
+  for (const std::string& arg : args) {
+    argv.push_back(arg.c_str());
+  }
+  std::ostringstream out;
+  std::ostringstream err;
+  const int status = run(static_cast<int>(argv.size()), argv.data(), out, err);
+  return {status, out.str(), err.str()};
+}
+
+std::string read_file(const fs::path& path) {
+  std::ifstream file(path, std::ios::binary);
+  std::ostringstream text;
+  text << file.rdbuf();
+  return text.str();
+}
+
+std::vector<nlohmann::json> json_lines(const std::string& text) {
+  std::vector<nlohmann::json> lines;
+  std::istringstream stream(text);
+  for (std::string line; std::getline(stream, line);) {
+    lines.push_back(nlohmann::json::parse(line));
+  }
+  return lines;
+}
+
+std::vector<std::vector<double>> csv_rows(const std::string& text) {
+  std::vector<std::vector<double>> rows;
+  std::istringstream stream(text);
+  std::string line;
+  std::getline(stream, line);  // header
+  while (std::getline(stream, line)) {
+    std::vector<double> row;
+    std::istringstream cells(line);
+    for (std::string cell; std::getline(cells, cell, ',');) {
+      row.push_back(std::stod(cell));
+    }
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+class SimulateCommand : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    folder_ = fs::temp_directory_path() / ("blockmap_simulate_" + std::to_string(::getpid()));
+    const Result result = run_cli({"simulate", "--world", "usc_block", "--seed", "3",
+                                   "--duration-s", "4", "--out", folder_.string()});
+    ASSERT_EQ(result.status, kExitOk) << result.err;
+    ASSERT_NE(result.err.find("simulate: usc_block seed 3"), std::string::npos) << result.err;
+  }
+  void TearDown() override { fs::remove_all(folder_); }
+
+  fs::path folder_;
+};
+
+TEST_F(SimulateCommand, WritesEveryLogTheTruthAndTheConfigurationsItUsed) {
+  for (const char* name : {"rmp.candump", "laser_horizontal.bytelog", "laser_vertical.bytelog",
+                           "gps.nmea", "truth.json", "truth_gps.csv", "world.toml", "robot.toml"}) {
+    EXPECT_TRUE(fs::exists(folder_ / name)) << name;
+  }
+  const nlohmann::json truth = nlohmann::json::parse(read_file(folder_ / "truth.json"));
+  EXPECT_EQ(truth["world"], "usc_block");
+  EXPECT_NEAR(static_cast<double>(truth["trajectory"].size()), 400.0, 2.0) << "100 Hz for 4 s";
+  for (const char* key : {"t_s", "x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad"}) {
+    EXPECT_TRUE(truth["trajectory"][0].contains(key)) << key;
+  }
+  ASSERT_EQ(truth["buildings"].size(), 1u);
+  EXPECT_EQ(truth["buildings"][0]["shape"], "rect");
+  int walls = 0;
+  for (const nlohmann::json& face : truth["faces"]) {
+    walls += face["kind"] == "wall" ? 1 : 0;
+    EXPECT_GE(face["corners"].size(), 4u);
+  }
+  EXPECT_EQ(walls, 4);
+  // The configurations replay needs are the ones the run used.
+  EXPECT_NE(read_file(folder_ / "world.toml").find("name = \"usc_block\""), std::string::npos);
+}
+
+TEST_F(SimulateCommand, TheSameSeedWritesTheSameBytes) {
+  const fs::path again = folder_.string() + "_again";
+  ASSERT_EQ(run_cli({"simulate", "--world", "usc_block", "--seed", "3", "--duration-s", "4",
+                     "--out", again.string()})
+                .status,
+            kExitOk);
+  for (const char* name : {"rmp.candump", "laser_horizontal.bytelog", "laser_vertical.bytelog",
+                           "gps.nmea", "truth.json"}) {
+    EXPECT_EQ(read_file(folder_ / name), read_file(again / name)) << name;
+  }
+  fs::remove_all(again);
+}
+
+TEST_F(SimulateCommand, DecodedGpsFixesAreTheTruePositionPlusTheReceiversError) {
+  const Result decoded = run_cli({"decode", "nmea", (folder_ / "gps.nmea").string()});
+  ASSERT_EQ(decoded.status, kExitOk);
+  const nlohmann::json truth = nlohmann::json::parse(read_file(folder_ / "truth.json"));
+  const hal::LocalEnuFrame frame({truth["origin"]["latitude_deg"], truth["origin"]["longitude_deg"],
+                                  truth["origin"]["height_m"]});
+  const auto epochs = csv_rows(read_file(folder_ / "truth_gps.csv"));
+  std::size_t epoch = 0;
+  for (const nlohmann::json& line : json_lines(decoded.out)) {
+    if (line["sentence"] != "GGA") {
+      continue;
+    }
+    ASSERT_LT(epoch, epochs.size());
+    const std::vector<double>& row = epochs[epoch++];  // t, x, y, z, error e, n, u, ...
+    const Eigen::Vector3d enu = frame.to_enu_m({line["lat"], line["lon"], 0.0});
+    EXPECT_NEAR(enu.x(), row[1] + row[4], 0.02);
+    EXPECT_NEAR(enu.y(), row[2] + row[5], 0.02);
+    EXPECT_EQ(line["quality"], 1);
+  }
+  EXPECT_EQ(epoch, epochs.size());
+  EXPECT_EQ(epoch, 16u) << "4 Hz for 4 s";
+}
+
+TEST_F(SimulateCommand, DecodedOdometryIsTheTrueMotionWithTheTyreScaleError) {
+  const Result decoded = run_cli({"decode", "rmp", (folder_ / "rmp.candump").string()});
+  ASSERT_EQ(decoded.status, kExitOk);
+  EXPECT_NE(decoded.err.find("400 complete status groups"), std::string::npos) << decoded.err;
+  const nlohmann::json truth = nlohmann::json::parse(read_file(folder_ / "truth.json"));
+  const nlohmann::json& last = truth["trajectory"].back();
+  const nlohmann::json& first = truth["trajectory"].front();
+  const double driven =
+      std::hypot(static_cast<double>(last["x_m"]) - static_cast<double>(first["x_m"]),
+                 static_cast<double>(last["y_m"]) - static_cast<double>(first["y_m"]));
+  double fore_aft = 0.0;
+  for (const nlohmann::json& line : json_lines(decoded.out)) {
+    if (line.contains("fore_aft_distance_m")) {
+      fore_aft = line["fore_aft_distance_m"];
+    }
+  }
+  // A straight start: the mean of the two wheels' scale errors (+1.2 % and -0.6 %), and slip.
+  EXPECT_NEAR(fore_aft, driven * 1.003, 0.02);
+}
+
+TEST_F(SimulateCommand, DecodedScansCarryTheirReceiveTimesAndTheWholeField) {
+  const Result decoded =
+      run_cli({"decode", "lms2xx", (folder_ / "laser_horizontal.bytelog").string()});
+  ASSERT_EQ(decoded.status, kExitOk);
+  int scans = 0;
+  double previous_t = 0.0;
+  for (const nlohmann::json& line : json_lines(decoded.out)) {
+    if (!line.contains("ranges_m")) {
+      continue;
+    }
+    ++scans;
+    EXPECT_EQ(line["ranges_m"].size(), 181u);
+    EXPECT_EQ(line["units"], "cm");
+    const double t = line["t_s"];
+    if (previous_t > 0.0) {
+      EXPECT_NEAR(t - previous_t, 1.0 / 75.0, 0.003) << "75 Hz, read every 2 ms";
+    }
+    previous_t = t;
+  }
+  EXPECT_NEAR(scans, 4 * 75, 3);
+}
+
+TEST_F(SimulateCommand, ADamagedByteLogDecodesWhatCameBeforeTheDamageAndFails) {
+  const fs::path path = folder_ / "laser_horizontal.bytelog";
+  const std::string bytes = read_file(path);
+  const fs::path cut = folder_ / "cut.bytelog";
+  std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() / 2 + 7);
+  const Result decoded = run_cli({"decode", "lms2xx", cut.string()});
+  EXPECT_EQ(decoded.status, kExitFailure);
+  EXPECT_NE(decoded.err.find("truncated"), std::string::npos) << decoded.err;
+  EXPECT_GT(json_lines(decoded.out).size(), 100u);
+}
+
+TEST(Simulate, AnUnknownWorldIsOneLineAndAUsageStatus) {
+  const Result result = run_cli({"simulate", "--world", "atlantis", "--out", "/tmp/unused"});
+  EXPECT_EQ(result.status, kExitUsage);
+  EXPECT_EQ(result.err,
+            "blockmap: no built-in world 'atlantis' (there are benning, partial, usc_block; or "
+            "give a .toml file)\n");
+}
+
+}  // namespace
+}  // namespace blockmap::cli
