@@ -68,18 +68,19 @@ std::vector<std::vector<double>> csv_rows(const std::string& text) {
   return rows;
 }
 
+// One simulated run, shared by the tests of the suite (each only reads it).
 class SimulateCommand : public ::testing::Test {
  protected:
-  void SetUp() override {
+  static void SetUpTestSuite() {
     folder_ = fs::temp_directory_path() / ("blockmap_simulate_" + std::to_string(::getpid()));
     const Result result = run_cli({"simulate", "--world", "usc_block", "--seed", "3",
                                    "--duration-s", "4", "--out", folder_.string()});
     ASSERT_EQ(result.status, kExitOk) << result.err;
     ASSERT_NE(result.err.find("simulate: usc_block seed 3"), std::string::npos) << result.err;
   }
-  void TearDown() override { fs::remove_all(folder_); }
+  static void TearDownTestSuite() { fs::remove_all(folder_); }
 
-  fs::path folder_;
+  static inline fs::path folder_;
 };
 
 TEST_F(SimulateCommand, WritesEveryLogTheTruthAndTheConfigurationsItUsed) {
@@ -186,7 +187,7 @@ TEST_F(SimulateCommand, DecodedScansCarryTheirReceiveTimesAndTheWholeField) {
 TEST_F(SimulateCommand, ADamagedByteLogDecodesWhatCameBeforeTheDamageAndFails) {
   const fs::path path = folder_ / "laser_horizontal.bytelog";
   const std::string bytes = read_file(path);
-  const fs::path cut = folder_ / "cut.bytelog";
+  const fs::path cut = folder_ / ("cut_" + std::to_string(::getpid()) + ".bytelog");
   std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() / 2 + 7);
   const Result decoded = run_cli({"decode", "lms2xx", cut.string()});
   EXPECT_EQ(decoded.status, kExitFailure);
