@@ -4,10 +4,8 @@
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdint>
-#include <fstream>
 #include <memory>
 #include <ostream>
-#include <sstream>
 #include <string>
 
 #include "blockmap/hal/config/config_error.hpp"
@@ -29,20 +27,13 @@ struct SimulateOptions {
   std::string out;
 };
 
-// The text a configuration came from: the built-in one, or the file's.
-std::string config_text(std::string_view builtin, const std::string& name_or_path) {
-  if (!builtin.empty()) {
-    return std::string(builtin);
-  }
-  std::ifstream file(name_or_path);
-  std::ostringstream text;
-  text << file.rdbuf();
-  return text.str();
-}
-
 int simulate(const SimulateOptions& options, std::ostream& err) {
-  const hal::sim::World world = hal::sim::load_world(options.world);
-  const hal::sim::RobotSpec robot = hal::sim::load_robot(options.robot);
+  std::string world_source;
+  std::string robot_source;
+  const std::string world_text = hal::sim::world_text(options.world, world_source);
+  const std::string robot_text = hal::sim::robot_text(options.robot, robot_source);
+  const hal::sim::World world = hal::sim::parse_world(world_text, world_source);
+  const hal::sim::RobotSpec robot = hal::sim::parse_robot(robot_text, robot_source);
   hal::sim::SimOptions sim_options;
   sim_options.seed = options.seed;
   sim_options.max_duration_s = options.duration_s;
@@ -50,10 +41,8 @@ int simulate(const SimulateOptions& options, std::ostream& err) {
   const auto wall_start = std::chrono::steady_clock::now();
   hal::sim::Simulation simulation(world, robot, sim_options);
   hal::sim::RunRecorder recorder(options.out, simulation);
-  recorder.write_text_file("world.toml",
-                           config_text(hal::sim::builtin_world_text(options.world), options.world));
-  recorder.write_text_file("robot.toml",
-                           config_text(hal::sim::builtin_robot_text(options.robot), options.robot));
+  recorder.write_text_file("world.toml", world_text);
+  recorder.write_text_file("robot.toml", robot_text);
   simulation.run(recorder);
   recorder.finish(options.seed);
   const double wall_s =

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <fstream>
 #include <sstream>
 
 namespace blockmap::hal::config {
@@ -15,6 +16,37 @@ toml::table parse_document(std::string_view text, std::string_view source) {
             << ": " << error.description();
     throw ConfigError(message.str());
   }
+}
+
+std::string builtin_or_file_text(std::span<const std::string_view> names,
+                                 std::span<const std::string_view> texts,
+                                 std::string_view name_or_path, std::string_view kind,
+                                 std::string& source) {
+  const bool is_path =
+      name_or_path.find('/') != std::string_view::npos || name_or_path.ends_with(".toml");
+  if (!is_path) {
+    std::string known;
+    for (std::size_t i = 0; i < names.size(); ++i) {
+      if (names[i] == name_or_path) {
+        source = std::string(name_or_path) + ".toml";
+        return std::string(texts[i]);
+      }
+      known += known.empty() ? "" : ", ";
+      known += names[i];
+    }
+    throw ConfigError("no built-in " + std::string(kind) + " '" + std::string(name_or_path) +
+                      "' (there " + (names.size() == 1 ? "is " : "are ") + known +
+                      "; or give a .toml file)");
+  }
+  std::ifstream file{std::string(name_or_path)};
+  if (!file) {
+    throw ConfigError("cannot open " + std::string(kind) + " file '" + std::string(name_or_path) +
+                      "'");
+  }
+  std::ostringstream text;
+  text << file.rdbuf();
+  source = std::string(name_or_path);
+  return text.str();
 }
 
 TableReader::TableReader(const toml::table& table, std::string source, std::string path)

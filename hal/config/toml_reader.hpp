@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <optional>
 #include <set>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -20,6 +21,14 @@ namespace blockmap::hal::config {
 
 // Parses a whole document; a syntax error becomes ConfigError "source:line:column: what".
 [[nodiscard]] toml::table parse_document(std::string_view text, std::string_view source);
+
+// A configuration named on the command line: a built-in one by name (`names[i]` -> `texts[i]`),
+// or a file when it looks like a path (a '/' or a .toml ending). `kind` ("world", "robot")
+// words the errors. Returns the text and sets `source` to the name messages should carry.
+[[nodiscard]] std::string builtin_or_file_text(std::span<const std::string_view> names,
+                                               std::span<const std::string_view> texts,
+                                               std::string_view name_or_path, std::string_view kind,
+                                               std::string& source);
 
 class TableReader {
  public:

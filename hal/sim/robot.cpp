@@ -2,7 +2,6 @@
 #include "blockmap/hal/sim/robot.hpp"
 
 #include <cmath>
-#include <fstream>
 #include <numbers>
 #include <sstream>
 
@@ -269,33 +268,15 @@ RobotSpec parse_robot(std::string_view toml_text, std::string_view source_name) 
   return robot;
 }
 
-std::string_view builtin_robot_text(std::string_view name) noexcept {
-  for (std::size_t i = 0; i < kBuiltinRobotNames.size(); ++i) {
-    if (kBuiltinRobotNames[i] == name) {
-      return kBuiltinRobotTexts[i];
-    }
-  }
-  return {};
+std::string robot_text(std::string_view name_or_path, std::string& source) {
+  return config::builtin_or_file_text(kBuiltinRobotNames, kBuiltinRobotTexts, name_or_path, "robot",
+                                      source);
 }
 
 RobotSpec load_robot(std::string_view name_or_path) {
-  const bool is_path =
-      name_or_path.find('/') != std::string_view::npos || name_or_path.ends_with(".toml");
-  if (!is_path) {
-    const std::string_view text = builtin_robot_text(name_or_path);
-    if (text.empty()) {
-      throw ConfigError("no built-in robot '" + std::string(name_or_path) +
-                        "' (there is paper_rmp; or give a .toml file)");
-    }
-    return parse_robot(text, std::string(name_or_path) + ".toml");
-  }
-  std::ifstream file{std::string(name_or_path)};
-  if (!file) {
-    throw ConfigError("cannot open robot file '" + std::string(name_or_path) + "'");
-  }
-  std::ostringstream text;
-  text << file.rdbuf();
-  return parse_robot(text.str(), name_or_path);
+  std::string source;
+  const std::string text = robot_text(name_or_path, source);
+  return parse_robot(text, source);
 }
 
 }  // namespace blockmap::hal::sim

@@ -3,9 +3,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
-#include <fstream>
 #include <numbers>
-#include <sstream>
 #include <stdexcept>
 
 #include "../config/toml_reader.hpp"
@@ -315,38 +313,15 @@ std::span<const std::string_view> builtin_world_names() noexcept {
   return kBuiltinWorldNames;
 }
 
-std::string_view builtin_world_text(std::string_view name) noexcept {
-  for (std::size_t i = 0; i < kBuiltinWorldNames.size(); ++i) {
-    if (kBuiltinWorldNames[i] == name) {
-      return kBuiltinWorldTexts[i];
-    }
-  }
-  return {};
+std::string world_text(std::string_view name_or_path, std::string& source) {
+  return config::builtin_or_file_text(kBuiltinWorldNames, kBuiltinWorldTexts, name_or_path, "world",
+                                      source);
 }
 
 World load_world(std::string_view name_or_path) {
-  const bool is_path =
-      name_or_path.find('/') != std::string_view::npos || name_or_path.ends_with(".toml");
-  if (!is_path) {
-    const std::string_view text = builtin_world_text(name_or_path);
-    if (text.empty()) {
-      std::string known;
-      for (const std::string_view name : kBuiltinWorldNames) {
-        known += known.empty() ? "" : ", ";
-        known += name;
-      }
-      throw ConfigError("no built-in world '" + std::string(name_or_path) + "' (there are " +
-                        known + "; or give a .toml file)");
-    }
-    return parse_world(text, std::string(name_or_path) + ".toml");
-  }
-  std::ifstream file{std::string(name_or_path)};
-  if (!file) {
-    throw ConfigError("cannot open world file '" + std::string(name_or_path) + "'");
-  }
-  std::ostringstream text;
-  text << file.rdbuf();
-  return parse_world(text.str(), name_or_path);
+  std::string source;
+  const std::string text = world_text(name_or_path, source);
+  return parse_world(text, source);
 }
 
 }  // namespace blockmap::hal::sim

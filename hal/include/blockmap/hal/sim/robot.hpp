@@ -93,8 +93,10 @@ struct RobotSpec {
 
 // A robot file's text -> RobotSpec. Mistakes throw ConfigError naming the file and the key.
 [[nodiscard]] RobotSpec parse_robot(std::string_view toml_text, std::string_view source_name);
-// The built-in `paper_rmp`, or a robot file by path. Throws ConfigError.
+// The text of the built-in `paper_rmp` (by name) or of a robot file (by path); `source` is set
+// to the name errors carry. Throws ConfigError.
+[[nodiscard]] std::string robot_text(std::string_view name_or_path, std::string& source);
+// robot_text() parsed. Throws ConfigError.
 [[nodiscard]] RobotSpec load_robot(std::string_view name_or_path);
-[[nodiscard]] std::string_view builtin_robot_text(std::string_view name) noexcept;
 
 }  // namespace blockmap::hal::sim

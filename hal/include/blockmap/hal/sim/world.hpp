@@ -135,13 +135,13 @@ struct World {
 // whose message names the file and the key.
 [[nodiscard]] World parse_world(std::string_view toml_text, std::string_view source_name);
 
-// The worlds compiled into the program (config/worlds/*.toml): names, and each one's text.
+// The names of the worlds compiled into the program (config/worlds/*.toml).
 [[nodiscard]] std::span<const std::string_view> builtin_world_names() noexcept;
-// The text of a built-in world; empty when there is none of that name.
-[[nodiscard]] std::string_view builtin_world_text(std::string_view name) noexcept;
 
-// A built-in world by name, or a world file by path (anything with a '/' or ending in .toml).
-// Throws ConfigError.
+// The text of a built-in world by name, or of a world file by path (anything with a '/' or
+// ending in .toml); `source` is set to the name errors carry. Throws ConfigError.
+[[nodiscard]] std::string world_text(std::string_view name_or_path, std::string& source);
+// world_text() parsed. Throws ConfigError.
 [[nodiscard]] World load_world(std::string_view name_or_path);
 
 }  // namespace blockmap::hal::sim
