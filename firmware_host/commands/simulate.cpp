@@ -53,7 +53,8 @@ int simulate(const SimulateOptions& options, std::ostream& err) {
       << " s, " << simulation.motion().distance_m() << " m driven, in " << wall_s << " s ("
       << simulation.elapsed_s() / wall_s << "x real time); ";
   for (std::size_t i = 0; i < robot.lasers.size(); ++i) {
-    err << "laser " << robot.lasers[i].name << ' ' << stats.scans_sent[i] << " scans, ";
+    err << "laser " << robot.lasers[i].name << ' ' << stats.scans_sent[i] << " scans ("
+        << stats.beams_returned[i] << " returns), ";
   }
   err << stats.gps_epochs << " GPS epochs (" << stats.gps_epochs_without_fix << " without fix), "
       << stats.rmp_cycles << " RMP cycles -> " << options.out << '\n';

@@ -141,6 +141,32 @@ std::string TableReader::string_or(std::string_view key, std::string_view fallba
   return string(key);
 }
 
+template <int N>
+Eigen::Matrix<double, N, 1> TableReader::fixed_vector(std::string_view key, const toml::node* node,
+                                                      std::string_view shape,
+                                                      std::string_view count) const {
+  const std::string expected = "expected " + std::string(shape) + " (" + std::string(count) + ")";
+  if (node == nullptr) {
+    fail(key, "missing (" + std::string(shape) + " is required)");
+  }
+  const toml::array* array = node->as_array();
+  if (array == nullptr || array->size() != N) {
+    fail(key, expected);
+  }
+  Eigen::Matrix<double, N, 1> value;
+  for (int i = 0; i < N; ++i) {
+    const toml::node& element = (*array)[static_cast<std::size_t>(i)];
+    if (!element.is_number()) {
+      fail(key, expected);
+    }
+    value[i] = *element.value<double>();
+  }
+  if (!value.allFinite()) {
+    fail(key, "must be finite");
+  }
+  return value;
+}
+
 double TableReader::unix_time(std::string_view key) {
   const toml::node* node = find(key);
   if (node == nullptr) {
@@ -163,38 +189,11 @@ double TableReader::unix_time(std::string_view key) {
 }
 
 Eigen::Vector2d TableReader::vec2(std::string_view key) {
-  const toml::node* node = find(key);
-  if (node == nullptr) {
-    fail(key, "missing (an [x, y] pair is required)");
-  }
-  const toml::array* array = node->as_array();
-  if (array == nullptr || array->size() != 2 || !(*array)[0].is_number() ||
-      !(*array)[1].is_number()) {
-    fail(key, "expected [x, y] (two numbers)");
-  }
-  Eigen::Vector2d value(*(*array)[0].value<double>(), *(*array)[1].value<double>());
-  if (!value.allFinite()) {
-    fail(key, "must be finite");
-  }
-  return value;
+  return fixed_vector<2>(key, find(key), "[x, y]", "two numbers");
 }
 
 Eigen::Vector3d TableReader::vec3(std::string_view key) {
-  const toml::node* node = find(key);
-  if (node == nullptr) {
-    fail(key, "missing (an [x, y, z] triple is required)");
-  }
-  const toml::array* array = node->as_array();
-  if (array == nullptr || array->size() != 3 || !(*array)[0].is_number() ||
-      !(*array)[1].is_number() || !(*array)[2].is_number()) {
-    fail(key, "expected [x, y, z] (three numbers)");
-  }
-  Eigen::Vector3d value(*(*array)[0].value<double>(), *(*array)[1].value<double>(),
-                        *(*array)[2].value<double>());
-  if (!value.allFinite()) {
-    fail(key, "must be finite");
-  }
-  return value;
+  return fixed_vector<3>(key, find(key), "[x, y, z]", "three numbers");
 }
 
 Eigen::Vector2d TableReader::vec2_or(std::string_view key, const Eigen::Vector2d& fallback) {
@@ -216,12 +215,8 @@ std::vector<Eigen::Vector2d> TableReader::vec2_list(std::string_view key) {
   }
   std::vector<Eigen::Vector2d> points;
   for (std::size_t i = 0; i < array->size(); ++i) {
-    const toml::array* pair = (*array)[i].as_array();
-    if (pair == nullptr || pair->size() != 2 || !(*pair)[0].is_number() ||
-        !(*pair)[1].is_number()) {
-      fail(std::string(key) + "[" + std::to_string(i) + "]", "expected [x, y] (two numbers)");
-    }
-    points.emplace_back(*(*pair)[0].value<double>(), *(*pair)[1].value<double>());
+    points.push_back(fixed_vector<2>(std::string(key) + "[" + std::to_string(i) + "]", &(*array)[i],
+                                     "[x, y]", "two numbers"));
   }
   return points;
 }

@@ -72,6 +72,13 @@ class TableReader {
 
  private:
   [[nodiscard]] const toml::node* find(std::string_view key);
+  // `node` as N finite numbers, written `shape` ("[x, y]") of `count` ("two numbers") in
+  // messages; fails naming `key`.
+  template <int N>
+  [[nodiscard]] Eigen::Matrix<double, N, 1> fixed_vector(std::string_view key,
+                                                         const toml::node* node,
+                                                         std::string_view shape,
+                                                         std::string_view count) const;
   [[nodiscard]] std::string key_path(std::string_view key) const;
 
   const toml::table* table_;

@@ -15,7 +15,6 @@ using config::TableReader;
 namespace lms = protocol::sick_lms2xx;
 
 constexpr double kRadPerDeg = std::numbers::pi / 180.0;
-constexpr double kMirrorRateHz = 75.0;  // the LMS291's mirror (PROTOCOLS.md 2.1)
 
 double degrees_or(TableReader& table, std::string_view key, double fallback_rad) {
   return table.number_or(key, fallback_rad / kRadPerDeg) * kRadPerDeg;
@@ -118,18 +117,6 @@ lms::AngularVariant parse_variant(TableReader& table) {
              "or 0.25 deg (field_deg, resolution_deg)");
 }
 
-// Mirror turns one scan needs: 1 at 1 deg, 2 at 0.5 deg, 4 at 0.25 deg (interlaced).
-int turns_per_scan(lms::AngularVariant variant) {
-  switch (lms::geometry(variant).resolution_centideg) {
-    case 50:
-      return 2;
-    case 25:
-      return 4;
-    default:
-      return 1;
-  }
-}
-
 LaserSpec parse_laser(TableReader& table) {
   LaserSpec laser;
   laser.name = table.string("name");
@@ -143,7 +130,7 @@ LaserSpec parse_laser(TableReader& table) {
   }
   laser.mount = parse_mount(table);
   laser.variant = parse_variant(table);
-  const double max_rate = kMirrorRateHz / turns_per_scan(laser.variant);
+  const double max_rate = kLms2xxMirrorRateHz / mirror_turns_per_scan(laser.variant);
   laser.scan_rate_hz = table.number_or("scan_rate_hz", max_rate);
   const double skip = max_rate / laser.scan_rate_hz;
   if (!(laser.scan_rate_hz > 0.0) || laser.scan_rate_hz > max_rate * 1.0001 ||
@@ -238,6 +225,17 @@ GpsSpec parse_gps(TableReader& root) {
 }
 
 }  // namespace
+
+int mirror_turns_per_scan(lms::AngularVariant variant) noexcept {
+  switch (lms::geometry(variant).resolution_centideg) {
+    case 50:
+      return 2;
+    case 25:
+      return 4;
+    default:
+      return 1;
+  }
+}
 
 Eigen::Matrix3d Mount::rotation() const {
   return (Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()) *

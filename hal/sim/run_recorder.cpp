@@ -75,7 +75,6 @@ void RunRecorder::write(File& file, const void* data, std::size_t size) {
   if (std::fwrite(data, 1, size, file.handle) != size) {
     failed_ = true;
   }
-  bytes_ += size;
 }
 
 void RunRecorder::on_can_frame(TimestampNs stamp_ns, const CanFrame& frame) {

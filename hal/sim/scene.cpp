@@ -81,24 +81,18 @@ void world_bounds(const World& world, double margin_m, Vec2& min_m, Vec2& max_m)
 
 namespace {
 
-Vec2 bounds_min(const World& world) {
+// The ground under everything in the world, and a margin around it.
+Terrain terrain_for(const World& world, std::uint64_t seed) {
   Vec2 low;
   Vec2 high;
   world_bounds(world, kMarginM, low, high);
-  return low;
-}
-
-Vec2 bounds_max(const World& world) {
-  Vec2 low;
-  Vec2 high;
-  world_bounds(world, kMarginM, low, high);
-  return high;
+  return {world.ground, low, high, seed};
 }
 
 }  // namespace
 
 Scene::Scene(const World& world, std::uint64_t seed)
-    : world_(world), terrain_(world.ground, bounds_min(world), bounds_max(world), seed) {
+    : world_(world), terrain_(terrain_for(world, seed)) {
   add_ground_face();
   for (std::size_t b = 0; b < world_.buildings.size(); ++b) {
     add_building(b);

@@ -68,6 +68,8 @@ class SimLms {
  private:
   [[nodiscard]] TimestampNs scan_start_ns(const SimContext& context, std::uint64_t scan) const;
   [[nodiscard]] TimestampNs scan_ready_ns(const SimContext& context, std::uint64_t scan) const;
+  // From a scan's first beam to its last.
+  [[nodiscard]] double scan_span_s() const noexcept;
   void start_handshake(const SimContext& context, SimSink& sink);
   void measure_scan(SimContext& context, SimSink& sink, SimStats& stats);
 
@@ -78,7 +80,6 @@ class SimLms {
   protocol::sick_lms2xx::VariantGeometry geometry_{};
   int turns_per_scan_ = 1;
   std::uint64_t turns_between_scans_ = 1;
-  double turn_s_ = 1.0 / 75.0;
   double first_turn_s_ = 0.0;
   double range_max_m_ = 80.0;
   bool started_ = false;

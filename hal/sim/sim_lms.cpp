@@ -15,7 +15,7 @@ namespace {
 
 namespace lms = protocol::sick_lms2xx;
 
-constexpr double kMirrorTurnS = 1.0 / 75.0;
+constexpr double kMirrorTurnS = 1.0 / kLms2xxMirrorRateHz;
 constexpr double kProcessingS = 0.001;      // from the last beam to the telegram's first byte
 constexpr double kRequestAtS = 0.001;       // the host's request, 1 ms into the run
 constexpr double kReplyDelayS = 0.002;      // the scanner's ACK after the request
@@ -31,10 +31,8 @@ SimLms::SimLms(const LaserSpec& spec, std::size_t device, std::uint64_t seed)
       wire_(spec.baud, static_cast<TimestampNs>(spec.read_interval_s * 1e9),
             4 * lms::kMaxTelegramBytes),
       geometry_(lms::geometry(spec.variant)) {
-  turns_per_scan_ = static_cast<int>(std::lround(geometry_.resolution_centideg == 50   ? 2
-                                                 : geometry_.resolution_centideg == 25 ? 4
-                                                                                       : 1));
-  const double max_rate = 75.0 / turns_per_scan_;
+  turns_per_scan_ = mirror_turns_per_scan(spec.variant);
+  const double max_rate = kLms2xxMirrorRateHz / turns_per_scan_;
   turns_between_scans_ = static_cast<std::uint64_t>(std::lround(max_rate / spec.scan_rate_hz)) *
                          static_cast<std::uint64_t>(turns_per_scan_);
   // The mirror's phase is not tied to the run's start; the first scan follows the handshake.
@@ -48,13 +46,18 @@ SimLms::SimLms(const LaserSpec& spec, std::size_t device, std::uint64_t seed)
 }
 
 TimestampNs SimLms::scan_start_ns(const SimContext& context, std::uint64_t scan) const {
-  return context.stamp(first_turn_s_ + static_cast<double>(scan * turns_between_scans_) * turn_s_);
+  return context.stamp(first_turn_s_ +
+                       static_cast<double>(scan * turns_between_scans_) * kMirrorTurnS);
+}
+
+double SimLms::scan_span_s() const noexcept {
+  // The last beam is measured half a turn into the last of the scan's turns.
+  return (turns_per_scan_ - 1 + 0.5) * kMirrorTurnS;
 }
 
 TimestampNs SimLms::scan_ready_ns(const SimContext& context, std::uint64_t scan) const {
-  // The last beam is measured half a turn into the last of the scan's turns.
-  const double span_s = (turns_per_scan_ - 1 + 0.5) * turn_s_;
-  return scan_start_ns(context, scan) + static_cast<TimestampNs>((span_s + kProcessingS) * 1e9);
+  return scan_start_ns(context, scan) +
+         static_cast<TimestampNs>((scan_span_s() + kProcessingS) * 1e9);
 }
 
 TimestampNs SimLms::next_event_ns(const SimContext& context) const noexcept {
@@ -107,7 +110,7 @@ void SimLms::fire(SimContext& context, SimSink& sink, SimStats& stats) {
 
 void SimLms::measure_scan(SimContext& context, SimSink& sink, SimStats& stats) {
   const double start_s = context.seconds(scan_start_ns(context, next_scan_));
-  const double end_s = start_s + (turns_per_scan_ - 1 + 0.5) * turn_s_;
+  const double end_s = start_s + scan_span_s();
   context.motion.advance_to(end_s + kProcessingS);
   const RobotState first = context.motion.state_at(start_s);
   const RobotState last = context.motion.state_at(end_s);
@@ -132,8 +135,8 @@ void SimLms::measure_scan(SimContext& context, SimSink& sink, SimStats& stats) {
   for (std::uint16_t i = 0; i < geometry_.value_count; ++i) {
     const double angle = start_angle + i * geometry_.resolution_centideg * kRadPerCentideg;
     // When the mirror pointed there: its turn within an interlaced scan, then its angle.
-    const double t_s = start_s + (i % turns_per_scan_) * turn_s_ +
-                       (angle + std::numbers::pi / 2.0) / (2.0 * std::numbers::pi) * turn_s_;
+    const double t_s = start_s + (i % turns_per_scan_) * kMirrorTurnS +
+                       (angle + std::numbers::pi / 2.0) / (2.0 * std::numbers::pi) * kMirrorTurnS;
     const double f = span_s > 0.0 ? std::clamp((t_s - start_s) / span_s, 0.0, 1.0) : 0.0;
     const Vec3& beam_sensor = beam_directions_[i];
     const Vec3 origin = origin_first + f * (origin_last - origin_first);

@@ -55,6 +55,11 @@ struct BaseSpec {
   double rate_noise_radps = 0.01;
 };
 
+// The LMS2xx's mirror turns at 75 Hz; a scan at 0.5 deg interlaces two turns, at 0.25 deg four
+// (PROTOCOLS.md 2.1).
+inline constexpr double kLms2xxMirrorRateHz = 75.0;
+[[nodiscard]] int mirror_turns_per_scan(protocol::sick_lms2xx::AngularVariant variant) noexcept;
+
 struct LaserSpec {
   std::string name;  // log file laser_<name>.bytelog
   Mount mount;

@@ -41,8 +41,6 @@ class RunRecorder final : public SimSink {
   // throws std::runtime_error when a write failed (a full disk).
   void finish(std::uint64_t seed);
 
-  [[nodiscard]] std::uint64_t bytes_written() const noexcept { return bytes_; }
-
  private:
   struct File {
     std::FILE* handle = nullptr;
@@ -60,7 +58,6 @@ class RunRecorder final : public SimSink {
   File truth_gps_;
   bool first_state_ = true;
   bool failed_ = false;
-  std::uint64_t bytes_ = 0;
 };
 
 }  // namespace blockmap::hal::sim
