@@ -9,6 +9,7 @@ namespace {
 
 constexpr double kMinRangeM = 1e-3;  // hits closer than this are the sensor's own housing
 constexpr double kMarginM = 30.0;    // ground beyond the outermost object
+constexpr double kGroundReachM = 80.0;  // the LMS2xx's longest range
 
 // Ray-crossing test of a point against a polygon (even-odd).
 bool inside_polygon(const std::vector<Vec2>& polygon, double x, double y) noexcept {
@@ -164,8 +165,9 @@ void Scene::add_ground_face() {
   ground.kind = SurfaceKind::kGround;
   ground.normal = Vec3::UnitZ();
   ground.d_m = 0.0;
-  const Vec2& low = terrain_.min_m();
-  const Vec2& high = terrain_.max_m();
+  // Beyond its height grid the ground goes on flat: the face reaches as far as a laser does.
+  const Vec2 low = terrain_.min_m() - Vec2::Constant(kGroundReachM);
+  const Vec2 high = terrain_.max_m() + Vec2::Constant(kGroundReachM);
   ground.corners_m = {Vec3(low.x(), low.y(), 0), Vec3(high.x(), low.y(), 0),
                       Vec3(high.x(), high.y(), 0), Vec3(low.x(), high.y(), 0)};
   faces_.push_back(ground);

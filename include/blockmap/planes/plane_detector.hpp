@@ -1,0 +1,84 @@
+// Planes from points, the paper's way (section III and the start of IV of the seed paper):
+//   points -> voxel samples (moments) -> local shape of each sample
+//   -> for each small overlapping section: a fixed-grid Hough transform over (d, theta, phi),
+//      every cell above the threshold that is a local maximum is a plane
+//   -> each plane refitted by least squares to its inlier samples (PlaneRefiner, below)
+//   -> section planes merged into the map's planes (PlaneMerger) and labelled.
+// Everything is sized at init() from the configuration; add_point() and detect() allocate
+// nothing. The same points in the same order give the same planes, bit for bit.
+#pragma once
+
+#include <cstdint>
+#include <span>
+
+#include <Eigen/Core>
+
+#include "blockmap/core/arena.hpp"
+#include "blockmap/msg/plane_patch.hpp"
+#include "blockmap/planes/hough_accumulator.hpp"
+#include "blockmap/planes/orientation_grid.hpp"
+#include "blockmap/planes/plane_merger.hpp"
+#include "blockmap/planes/planes_config.hpp"
+#include "blockmap/planes/section_grid.hpp"
+#include "blockmap/planes/voxel_grid.hpp"
+
+namespace blockmap::planes {
+
+struct DetectionStats {
+  std::uint64_t points = 0;          // accepted into samples
+  std::uint64_t points_dropped = 0;  // non-finite, out of range or no room (see counters)
+  std::uint64_t samples = 0;
+  std::uint64_t planar_samples = 0;
+  std::uint64_t linear_samples = 0;
+  std::uint64_t scattered_samples = 0;
+  std::uint64_t sections = 0;
+  std::uint64_t votes = 0;
+  std::uint64_t peaks = 0;
+  std::uint64_t section_planes = 0;
+  std::uint64_t planes = 0;
+};
+
+class PlaneDetector {
+ public:
+  // Takes every buffer from the arena. CHECK-fails on an invalid configuration (validate()).
+  void init(Arena& arena, const PlanesConfig& config);
+
+  // Forgets all points.
+  void clear() noexcept;
+  void add_point(const Eigen::Vector3f& point_m) noexcept { voxels_.add_point(point_m); }
+  void add_points(std::span<const Eigen::Vector3f> points_m) noexcept;
+
+  // The planes of every point added since clear(), largest first. The span stays valid
+  // until the next detect() or clear().
+  std::span<const msg::PlanePatch> detect() noexcept;
+
+  [[nodiscard]] const DetectionStats& stats() const noexcept { return stats_; }
+  [[nodiscard]] const PlanesConfig& config() const noexcept { return config_; }
+  [[nodiscard]] const VoxelGrid& voxels() const noexcept { return voxels_; }
+  [[nodiscard]] std::size_t memory_bytes() const noexcept;
+
+ private:
+  void detect_in_section(CellKey section) noexcept;
+  void vote_sample(const Voxel& voxel, const Eigen::Vector3f& position_m) noexcept;
+  // PlaneRefiner: the inliers of a peak, refitted by least squares; false when too few.
+  bool refine(const HoughPeak& peak, const Eigen::Vector3f& section_centre_m,
+              std::size_t sample_count, SectionPlane& out) noexcept;
+  [[nodiscard]] bool orientation_searched(const Eigen::Vector3d& normal) const noexcept;
+  void set_corners(const Eigen::Vector3d& normal, double d_m, std::size_t inlier_count,
+                   SectionPlane& out) const noexcept;
+
+  PlanesConfig config_;
+  OrientationGrid orientations_;
+  VoxelGrid voxels_;
+  SectionGrid sections_;
+  HoughAccumulator accumulator_;
+  PlaneMerger merger_;
+  std::span<std::uint32_t> section_samples_;
+  std::span<Eigen::Vector3f> section_positions_;
+  std::span<std::uint32_t> inliers_;
+  std::span<HoughPeak> peaks_;
+  float cos_inlier_angle_ = 0.0f;
+  DetectionStats stats_;
+};
+
+}  // namespace blockmap::planes

@@ -1,0 +1,94 @@
+// Merging the planes of the sections into the planes of the map, in the manner of Tavares and
+// Padilha (the paper's reference [4]) for line segments: planes that are close and of similar
+// direction are merged, whether their extents overlap or not, each weighted by its size.
+//
+// Two stages keep it linear in the number of section planes:
+//  1. section planes of neighbouring sections that lie on one plane are joined (union-find):
+//     the pieces of one wall become one candidate;
+//  2. candidates, largest first, are merged into the planes accepted so far when their
+//     directions agree, they lie on the accepted plane, and their extents come within the
+//     gap; repeated until nothing merges. Weighting by size is exact: moments add up.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+
+#include <Eigen/Core>
+
+#include "blockmap/core/arena.hpp"
+#include "blockmap/msg/plane_patch.hpp"
+#include "blockmap/planes/planes_config.hpp"
+#include "blockmap/planes/point_moments.hpp"
+#include "blockmap/planes/section_grid.hpp"
+
+namespace blockmap::planes {
+
+// A plane found in one section: its points' moments and the rectangle of its samples.
+struct SectionPlane {
+  CellKey section = 0;
+  PointMoments moments;  // relative to the detector's origin
+  Eigen::Vector3d normal_unit = Eigen::Vector3d::UnitZ();
+  double d_m = 0.0;
+  std::array<Eigen::Vector3f, 4> corners_m{};
+};
+
+class PlaneMerger {
+ public:
+  struct Counters {
+    std::uint64_t section_planes_dropped_full = 0;
+    std::uint64_t planes_dropped_full = 0;
+    std::uint64_t stage2_merges = 0;
+  };
+
+  void init(Arena& arena, const PlanesConfig& config);
+  void clear() noexcept;
+
+  // Section planes must come in section key order (the detector's order). False when full.
+  bool add(const SectionPlane& plane) noexcept;
+
+  // Merges, labels and numbers the planes (largest first).
+  std::span<const msg::PlanePatch> merge(const SectionGrid& sections) noexcept;
+
+  [[nodiscard]] std::size_t section_plane_count() const noexcept { return plane_count_; }
+  [[nodiscard]] const Counters& counters() const noexcept { return counters_; }
+  [[nodiscard]] std::size_t memory_bytes() const noexcept;
+
+ private:
+  struct Candidate {
+    PointMoments moments;
+    PlaneFit fit;
+    std::array<Eigen::Vector3d, msg::kMaxPolygonVertices> polygon_m{};
+    std::uint8_t polygon_size = 0;
+    Eigen::Vector3d box_min_m = Eigen::Vector3d::Zero();
+    Eigen::Vector3d box_max_m = Eigen::Vector3d::Zero();
+    bool alive = true;
+  };
+
+  std::uint32_t find_root(std::uint32_t i) noexcept;
+  void join_neighbouring_section_planes(const SectionGrid& sections) noexcept;
+  void build_candidates() noexcept;
+  // Polygon of `points` (3D, on or near the plane of `fit`) into `candidate`.
+  void set_polygon(Candidate& candidate, std::span<const Eigen::Vector3d> points) noexcept;
+  [[nodiscard]] bool can_merge(const Candidate& big, const Candidate& small) noexcept;
+  void absorb(Candidate& big, const Candidate& small) noexcept;
+  std::size_t merge_candidates() noexcept;
+  void label_and_emit() noexcept;
+
+  PlanesConfig config_;
+  std::span<SectionPlane> planes_;
+  std::size_t plane_count_ = 0;
+  std::span<std::uint32_t> parent_;
+  std::span<std::uint32_t> member_order_;
+  std::span<Candidate> candidates_;
+  std::size_t candidate_count_ = 0;
+  std::span<Eigen::Vector3d> scratch_points_;
+  std::span<Eigen::Vector2d> scratch_2d_;
+  std::span<Eigen::Vector2d> scratch_hull_;
+  std::span<Eigen::Vector2d> scratch_other_;
+  std::span<msg::PlanePatch> output_;
+  std::size_t output_count_ = 0;
+  Counters counters_;
+};
+
+}  // namespace blockmap::planes

@@ -1,0 +1,93 @@
+// Every parameter of plane detection, with defaults that work for a Segway with LMS2xx lasers
+// in a city block (centimetre range noise, points 1-50 m away). Units are in the names.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+namespace blockmap::planes {
+
+// Which plane orientations the Hough transform searches.
+enum class OrientationMode : std::uint8_t {
+  // The paper's: walls are vertical and roofs or ground horizontal, each within
+  // orientation_tolerance_deg. The search space shrinks to two bands of the sphere.
+  kWallsAndRoofs,
+  // Any orientation, on cells of about equal area over the half sphere.
+  kAny,
+};
+
+// How each sample votes.
+enum class VotingMode : std::uint8_t {
+  // A sample votes only for orientations near the normal of its neighbourhood (planar
+  // samples) or on the circle of normals perpendicular to its line (samples on one scan
+  // line); scattered samples (foliage) do not vote. Tens of votes per sample.
+  kLocalShape,
+  // The paper's literal transform: every sample votes for every orientation searched.
+  kEveryOrientation,
+};
+
+struct PlanesConfig {
+  // Points are first summed into cubic samples of this edge (moments, not points, are kept).
+  double sample_size_m = 0.2;
+  // Sections: cubes of section_size_m, one starting every section_stride_m along each axis,
+  // so that they overlap and a plane crossing a section border is whole in a neighbour.
+  // section_size_m must be a whole multiple of section_stride_m, and the stride a whole
+  // multiple of sample_size_m.
+  double section_size_m = 1.6;
+  double section_stride_m = 0.8;
+
+  // The (d, theta, phi) grid.
+  double d_bin_m = 0.05;
+  double angle_bin_deg = 2.0;
+  OrientationMode orientation_mode = OrientationMode::kWallsAndRoofs;
+  double orientation_tolerance_deg = 5.0;  // kWallsAndRoofs: off vertical / horizontal
+  VotingMode voting_mode = VotingMode::kLocalShape;
+  double normal_kernel_deg = 4.0;  // kLocalShape: planar samples vote this far around their normal
+
+  // Local shape of a sample, from the points of its 3 x 3 x 3 neighbourhood.
+  std::uint32_t min_points_for_shape = 5;
+  double max_planarity_ratio = 0.3;  // sqrt(l0 / l1) of a planar neighbourhood, at most
+  double max_line_ratio = 0.15;      // sqrt(l1 / l2) of a linear neighbourhood, at most
+
+  // A cell of the accumulator is a plane when its votes (points, summed over the cell and its
+  // two neighbours in d) reach this threshold and no neighbouring cell has more.
+  double min_votes = 30.0;
+  std::size_t max_planes_per_section = 8;
+  // Least-squares refinement: samples within this distance of a peak's plane, and (for
+  // planar samples) with a normal within inlier_angle_deg of it, are its inliers.
+  double inlier_distance_m = 0.1;
+  double inlier_angle_deg = 20.0;
+  std::uint32_t refine_iterations = 2;
+
+  // Merging across sections (Tavares and Padilha): planes whose normals differ by at most
+  // merge_angle_deg, whose centroids lie within merge_distance_m of each other's plane and
+  // whose extents come within merge_gap_m plus merge_gap_fraction of the larger plane's size
+  // (its bounding box diagonal) of each other are one plane.
+  double merge_angle_deg = 5.0;
+  double merge_distance_m = 0.15;
+  double merge_gap_m = 2.0;
+  double merge_gap_fraction = 0.15;
+
+  // Labels. A plane within label_tolerance_deg of vertical is a wall when its observed extent
+  // is at least min_wall_height_m high and min_wall_width_m wide; a horizontal one is ground
+  // when it lies within ground_step_m of the ground (the lowest large horizontal plane), a
+  // roof when it is at least min_roof_height_m above it. Everything else is "other".
+  double label_tolerance_deg = 5.0;
+  double min_wall_height_m = 1.8;
+  double min_wall_width_m = 1.0;
+  double ground_step_m = 0.5;
+  double min_roof_height_m = 2.0;
+  double min_reported_support = 50.0;  // smaller merged planes are not reported
+
+  // Capacities, all taken at init.
+  std::size_t max_samples = 1u << 20;
+  std::size_t max_samples_per_section = 4096;
+  std::size_t max_patches = 1u << 16;
+  std::size_t max_planes = 4096;
+};
+
+// Empty when the configuration is usable, otherwise what is wrong with it.
+[[nodiscard]] std::string validate(const PlanesConfig& config);
+
+}  // namespace blockmap::planes

@@ -1,0 +1,55 @@
+// First and second moments of a set of points. They are all a least-squares plane fit needs,
+// they merge exactly (the moments of a union are the sum of the moments), and points can be
+// taken out again, which the streaming map needs when points leave its window.
+#pragma once
+
+#include <Eigen/Core>
+
+namespace blockmap::planes {
+
+// In double: sums over a whole wall reach 1e7 m^2 and must keep centimetres.
+struct PointMoments {
+  double weight = 0.0;                          // number of points (or their total weight)
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();  // sum of p, relative to the owner's origin
+  Eigen::Matrix3d sum_outer = Eigen::Matrix3d::Zero();  // sum of p p^T
+
+  void add(const Eigen::Vector3d& point, double point_weight = 1.0) noexcept {
+    weight += point_weight;
+    sum += point_weight * point;
+    sum_outer += point_weight * point * point.transpose();
+  }
+  void merge(const PointMoments& other) noexcept {
+    weight += other.weight;
+    sum += other.sum;
+    sum_outer += other.sum_outer;
+  }
+  // The same points seen from an origin `shift_m` away: p' = p + shift_m.
+  [[nodiscard]] PointMoments shifted(const Eigen::Vector3d& shift_m) const noexcept {
+    PointMoments out;
+    out.weight = weight;
+    out.sum = sum + weight * shift_m;
+    out.sum_outer = sum_outer + sum * shift_m.transpose() + shift_m * sum.transpose() +
+                    weight * shift_m * shift_m.transpose();
+    return out;
+  }
+  [[nodiscard]] Eigen::Vector3d mean() const noexcept { return sum / weight; }
+  [[nodiscard]] Eigen::Matrix3d covariance() const noexcept {
+    const Eigen::Vector3d m = mean();
+    return sum_outer / weight - m * m.transpose();
+  }
+};
+
+// The least-squares plane n . p = d of a set of points: the normal is the covariance's
+// eigenvector of the smallest eigenvalue, the plane passes through the centroid.
+struct PlaneFit {
+  bool valid = false;  // false for fewer than three points
+  Eigen::Vector3d normal_unit = Eigen::Vector3d::UnitZ();
+  double d_m = 0.0;  // relative to the moments' origin
+  Eigen::Vector3d centroid_m = Eigen::Vector3d::Zero();
+  double rmse_m = 0.0;                                      // RMS point distance to the plane
+  Eigen::Vector3d eigenvalues_m2 = Eigen::Vector3d::Zero();  // ascending
+};
+
+[[nodiscard]] PlaneFit fit_plane(const PointMoments& moments) noexcept;
+
+}  // namespace blockmap::planes

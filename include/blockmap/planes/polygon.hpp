@@ -1,0 +1,33 @@
+// Small fixed-size geometry for plane extents: a basis on a plane, convex hulls in it, their
+// simplification and the gap between two of them. No allocation: callers pass the buffers.
+#pragma once
+
+#include <cstddef>
+#include <span>
+#include <utility>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace blockmap::planes {
+
+// Two unit vectors spanning the plane with this normal. For walls the first is horizontal
+// and the second points up the wall, so a wall's extent reads as length and height.
+[[nodiscard]] std::pair<Eigen::Vector3d, Eigen::Vector3d> plane_basis(
+    const Eigen::Vector3d& normal_unit) noexcept;
+
+// The convex hull of `points` (reordered in place), counter-clockwise, into `hull` (size at
+// least points.size() + 1). Returns the hull's vertex count.
+std::size_t convex_hull(std::span<Eigen::Vector2d> points, std::span<Eigen::Vector2d> hull) noexcept;
+
+// Drops the vertices that add least area until at most max_vertices remain; returns the count.
+std::size_t simplify_polygon(std::span<Eigen::Vector2d> polygon, std::size_t size,
+                             std::size_t max_vertices) noexcept;
+
+// The smallest distance between two convex polygons (counter-clockwise), 0 when they overlap.
+[[nodiscard]] double convex_polygon_gap(std::span<const Eigen::Vector2d> a,
+                                        std::span<const Eigen::Vector2d> b) noexcept;
+
+[[nodiscard]] double polygon_area(std::span<const Eigen::Vector2d> polygon) noexcept;
+
+}  // namespace blockmap::planes

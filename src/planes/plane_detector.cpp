@@ -1,0 +1,231 @@
+#include "blockmap/planes/plane_detector.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include "blockmap/core/check.hpp"
+#include "blockmap/planes/polygon.hpp"
+
+namespace blockmap::planes {
+namespace {
+
+constexpr double kDegToRad = std::numbers::pi / 180.0;
+
+std::uint32_t whole_ratio(double a, double b) {
+  return static_cast<std::uint32_t>(std::lround(a / b));
+}
+
+}  // namespace
+
+void PlaneDetector::init(Arena& arena, const PlanesConfig& config) {
+  const std::string problem = validate(config);
+  BLOCKMAP_CHECK_MSG(problem.empty(), "invalid planes configuration (validate() says why)");
+  config_ = config;
+  orientations_.init(arena, config.angle_bin_deg, config.orientation_mode,
+                     config.orientation_tolerance_deg, config.normal_kernel_deg);
+  voxels_.init(arena, config.sample_size_m, config.max_samples);
+  sections_.init(arena, config.max_samples, whole_ratio(config.section_stride_m, config.sample_size_m),
+                 whole_ratio(config.section_size_m, config.section_stride_m), config.sample_size_m);
+  // d relative to the section centre reaches half the section's diagonal.
+  const double half_range_m = 0.5 * std::sqrt(3.0) * config.section_size_m + config.d_bin_m;
+  // Votes of a section: each sample votes for at most the kernel's rows, or all rows.
+  accumulator_.init(arena, orientations_, half_range_m, config.d_bin_m,
+                    config.max_samples_per_section * 32);
+  merger_.init(arena, config);
+  section_samples_ = arena.allocate_array<std::uint32_t>(config.max_samples_per_section, "planes.detector");
+  section_positions_ =
+      arena.allocate_array<Eigen::Vector3f>(config.max_samples_per_section, "planes.detector");
+  inliers_ = arena.allocate_array<std::uint32_t>(config.max_samples_per_section, "planes.detector");
+  peaks_ = arena.allocate_array<HoughPeak>(config.max_planes_per_section, "planes.detector");
+  cos_inlier_angle_ = static_cast<float>(std::cos(config.inlier_angle_deg * kDegToRad));
+}
+
+void PlaneDetector::clear() noexcept {
+  voxels_.clear();
+  merger_.clear();
+  stats_ = DetectionStats{};
+}
+
+void PlaneDetector::add_points(std::span<const Eigen::Vector3f> points_m) noexcept {
+  for (const Eigen::Vector3f& p : points_m) {
+    voxels_.add_point(p);
+  }
+}
+
+std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
+  stats_ = DetectionStats{};
+  const VoxelGrid::Counters& counters = voxels_.counters();
+  stats_.points = counters.points_added;
+  stats_.points_dropped = counters.points_dropped_full + counters.points_dropped_range +
+                          counters.points_dropped_nonfinite;
+  voxels_.estimate_shapes(config_.min_points_for_shape, config_.max_planarity_ratio,
+                          config_.max_line_ratio);
+  for (Voxel& voxel : voxels_.voxels()) {
+    voxel.owner = -1;
+    voxel.axis_cell = orientations_.cell_of(voxel.axis);
+    stats_.planar_samples += voxel.shape == LocalShape::kPlanar ? 1 : 0;
+    stats_.linear_samples += voxel.shape == LocalShape::kLinear ? 1 : 0;
+    stats_.scattered_samples += voxel.shape == LocalShape::kScattered ? 1 : 0;
+  }
+  stats_.samples = voxels_.voxels().size();
+  sections_.build(voxels_);
+  merger_.clear();
+  for (const CellKey section : sections_.sections()) {
+    detect_in_section(section);
+  }
+  stats_.sections = sections_.sections().size();
+  stats_.section_planes = merger_.section_plane_count();
+  const std::span<const msg::PlanePatch> planes = merger_.merge(sections_);
+  stats_.planes = planes.size();
+  return planes;
+}
+
+void PlaneDetector::vote_sample(const Voxel& voxel, const Eigen::Vector3f& position_m) noexcept {
+  const auto weight = static_cast<float>(voxel.point_count);
+  const auto vote = [&](std::uint32_t row) {
+    accumulator_.vote(row, position_m, weight);
+    ++stats_.votes;
+  };
+  if (config_.voting_mode == VotingMode::kEveryOrientation) {
+    for (std::uint32_t row = 0; row < orientations_.row_count(); ++row) {
+      vote(row);
+    }
+    return;
+  }
+  switch (voxel.shape) {
+    case LocalShape::kPlanar:
+      for (const std::uint32_t row : orientations_.surface_kernel(voxel.axis_cell)) {
+        vote(row);
+      }
+      break;
+    case LocalShape::kLinear:
+      for (const std::uint32_t row : orientations_.line_kernel(voxel.axis_cell)) {
+        vote(row);
+      }
+      break;
+    case LocalShape::kTooFewPoints:
+    case LocalShape::kScattered:
+      break;  // no surface here to vote for
+  }
+}
+
+void PlaneDetector::detect_in_section(CellKey section) noexcept {
+  const std::size_t count = sections_.gather(section, section_samples_);
+  const Eigen::Vector3f centre = sections_.centre_m(section);
+  const std::span<Voxel> voxels = voxels_.voxels();
+  accumulator_.clear();
+  bool any_free = false;
+  for (std::size_t i = 0; i < count; ++i) {
+    const Voxel& voxel = voxels[section_samples_[i]];
+    section_positions_[i] = voxels_.centroid_m(voxel) - centre;
+    any_free = any_free || voxel.owner < 0;
+    if (voxel.point_count > 0) {
+      vote_sample(voxel, section_positions_[i]);
+    }
+  }
+  if (!any_free) {
+    return;  // every sample already belongs to a plane of an earlier section
+  }
+  const std::size_t peaks =
+      accumulator_.find_peaks(static_cast<float>(config_.min_votes), peaks_);
+  stats_.peaks += peaks;
+  for (std::size_t i = 0; i < peaks; ++i) {
+    SectionPlane plane;
+    plane.section = section;
+    if (refine(peaks_[i], centre, count, plane)) {
+      merger_.add(plane);
+    }
+  }
+}
+
+bool PlaneDetector::refine(const HoughPeak& peak, const Eigen::Vector3f& section_centre_m,
+                           std::size_t sample_count, SectionPlane& out) noexcept {
+  const std::span<Voxel> voxels = voxels_.voxels();
+  const Eigen::Vector3d centre = section_centre_m.cast<double>();
+  Eigen::Vector3d normal = peak.normal.cast<double>();
+  double d_m = peak.d_m;  // relative to the section centre
+  PointMoments moments;
+  std::size_t inliers = 0;
+  for (std::uint32_t iteration = 0; iteration < std::max<std::uint32_t>(config_.refine_iterations, 1);
+       ++iteration) {
+    const Eigen::Vector3f n = normal.cast<float>();
+    const auto d = static_cast<float>(d_m);
+    moments = PointMoments{};
+    inliers = 0;
+    for (std::size_t i = 0; i < sample_count; ++i) {
+      const Voxel& voxel = voxels[section_samples_[i]];
+      // Scattered samples (foliage, corners where two walls meet) would pull the fit round.
+      if (voxel.owner >= 0 || voxel.point_count == 0 || voxel.shape == LocalShape::kScattered ||
+          std::abs(n.dot(section_positions_[i]) - d) > static_cast<float>(config_.inlier_distance_m) ||
+          (voxel.shape == LocalShape::kPlanar && std::abs(voxel.axis.dot(n)) < cos_inlier_angle_)) {
+        continue;
+      }
+      moments.merge(voxels_.moments(voxel, centre));
+      inliers_[inliers++] = static_cast<std::uint32_t>(i);
+    }
+    if (moments.weight < config_.min_votes) {
+      return false;
+    }
+    const PlaneFit fit = fit_plane(moments);
+    // Points along one line fit every plane through it: not a plane.
+    if (!fit.valid || std::sqrt(fit.eigenvalues_m2(1)) < 0.5 * config_.sample_size_m) {
+      return false;
+    }
+    normal = fit.normal_unit;
+    d_m = fit.d_m;
+  }
+  if (!orientation_searched(normal)) {
+    return false;
+  }
+  const auto owner = static_cast<std::int32_t>(merger_.section_plane_count());
+  for (std::size_t k = 0; k < inliers; ++k) {
+    voxels[section_samples_[inliers_[k]]].owner = owner;
+  }
+  out.moments = moments.shifted(centre);
+  out.normal_unit = normal;
+  out.d_m = d_m + normal.dot(centre);
+  set_corners(normal, d_m, inliers, out);
+  for (Eigen::Vector3f& corner : out.corners_m) {
+    corner += section_centre_m;
+  }
+  return true;
+}
+
+bool PlaneDetector::orientation_searched(const Eigen::Vector3d& normal) const noexcept {
+  if (config_.orientation_mode == OrientationMode::kAny) {
+    return true;
+  }
+  const double tolerance = config_.orientation_tolerance_deg * kDegToRad;
+  const double z = std::abs(normal.z());
+  return z >= std::cos(tolerance) || z <= std::sin(tolerance);
+}
+
+void PlaneDetector::set_corners(const Eigen::Vector3d& normal, double d_m, std::size_t inlier_count,
+                                SectionPlane& out) const noexcept {
+  // The rectangle, in the plane's own axes, of its samples' centroids (section-relative).
+  const auto [u, v] = plane_basis(normal);
+  double u_min = std::numeric_limits<double>::infinity();
+  double u_max = -u_min;
+  double v_min = u_min;
+  double v_max = -u_min;
+  for (std::size_t k = 0; k < inlier_count; ++k) {
+    const Eigen::Vector3d p = section_positions_[inliers_[k]].cast<double>();
+    u_min = std::min(u_min, u.dot(p));
+    u_max = std::max(u_max, u.dot(p));
+    v_min = std::min(v_min, v.dot(p));
+    v_max = std::max(v_max, v.dot(p));
+  }
+  const Eigen::Vector3d foot = normal * d_m;
+  out.corners_m = {(foot + u_min * u + v_min * v).cast<float>(), (foot + u_max * u + v_min * v).cast<float>(),
+                   (foot + u_max * u + v_max * v).cast<float>(), (foot + u_min * u + v_max * v).cast<float>()};
+}
+
+std::size_t PlaneDetector::memory_bytes() const noexcept {
+  return orientations_.memory_bytes() + voxels_.memory_bytes() + sections_.memory_bytes() +
+         accumulator_.memory_bytes() + merger_.memory_bytes() + section_samples_.size_bytes() +
+         section_positions_.size_bytes() + inliers_.size_bytes() + peaks_.size_bytes();
+}
+
+}  // namespace blockmap::planes

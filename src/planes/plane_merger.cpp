@@ -1,0 +1,336 @@
+#include "blockmap/planes/plane_merger.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <tuple>
+#include <type_traits>
+
+#include "blockmap/core/check.hpp"
+#include "blockmap/planes/polygon.hpp"
+
+namespace blockmap::planes {
+namespace {
+
+double cos_deg(double degrees) { return std::cos(degrees * std::numbers::pi / 180.0); }
+double sin_deg(double degrees) { return std::sin(degrees * std::numbers::pi / 180.0); }
+
+bool boxes_within(const Eigen::Vector3d& a_min, const Eigen::Vector3d& a_max,
+                  const Eigen::Vector3d& b_min, const Eigen::Vector3d& b_max, double gap) {
+  return (a_min.array() - gap <= b_max.array()).all() && (b_min.array() - gap <= a_max.array()).all();
+}
+
+}  // namespace
+
+void PlaneMerger::init(Arena& arena, const PlanesConfig& config) {
+  config_ = config;
+  planes_ = arena.allocate_array<SectionPlane>(config.max_patches, "planes.merger");
+  parent_ = arena.allocate_array<std::uint32_t>(config.max_patches, "planes.merger");
+  member_order_ = arena.allocate_array<std::uint32_t>(config.max_patches, "planes.merger");
+  candidates_ = arena.allocate_array<Candidate>(config.max_planes, "planes.merger");
+  // Every corner of every section plane of one candidate, and two polygons side by side.
+  scratch_points_ = arena.allocate_array<Eigen::Vector3d>(4 * config.max_patches, "planes.merger");
+  scratch_2d_ = arena.allocate_array<Eigen::Vector2d>(4 * config.max_patches + 1, "planes.merger");
+  scratch_hull_ = arena.allocate_array<Eigen::Vector2d>(4 * config.max_patches + 1, "planes.merger");
+  scratch_other_ = arena.allocate_array<Eigen::Vector2d>(msg::kMaxPolygonVertices, "planes.merger");
+  output_ = arena.allocate_array<msg::PlanePatch>(config.max_planes, "planes.merger");
+  clear();
+}
+
+void PlaneMerger::clear() noexcept {
+  plane_count_ = 0;
+  candidate_count_ = 0;
+  output_count_ = 0;
+  counters_ = Counters{};
+}
+
+bool PlaneMerger::add(const SectionPlane& plane) noexcept {
+  if (plane_count_ == planes_.size()) {
+    ++counters_.section_planes_dropped_full;
+    return false;
+  }
+  BLOCKMAP_CHECK_MSG(plane_count_ == 0 || planes_[plane_count_ - 1].section <= plane.section,
+                     "section planes must come in section order");
+  parent_[plane_count_] = static_cast<std::uint32_t>(plane_count_);
+  planes_[plane_count_++] = plane;
+  return true;
+}
+
+std::uint32_t PlaneMerger::find_root(std::uint32_t i) noexcept {
+  while (parent_[i] != i) {
+    parent_[i] = parent_[parent_[i]];  // path halving
+    i = parent_[i];
+  }
+  return i;
+}
+
+void PlaneMerger::join_neighbouring_section_planes(const SectionGrid& sections) noexcept {
+  const double cos_angle = cos_deg(config_.merge_angle_deg);
+  const auto same_plane = [&](const SectionPlane& a, const SectionPlane& b) {
+    if (std::abs(a.normal_unit.dot(b.normal_unit)) < cos_angle) {
+      return false;
+    }
+    const Eigen::Vector3d ca = a.moments.mean();
+    const Eigen::Vector3d cb = b.moments.mean();
+    return std::abs(a.normal_unit.dot(cb) - a.d_m) <= config_.merge_distance_m &&
+           std::abs(b.normal_unit.dot(ca) - b.d_m) <= config_.merge_distance_m;
+  };
+  const auto first = planes_.begin();
+  const auto last = planes_.begin() + static_cast<std::ptrdiff_t>(plane_count_);
+  std::array<CellKey, 13> neighbours{};
+  for (std::size_t i = 0; i < plane_count_; ++i) {
+    const std::size_t count = sections.later_neighbours(planes_[i].section, neighbours);
+    for (std::size_t k = 0; k < count; ++k) {
+      const auto range = std::equal_range(
+          first, last, neighbours[k],
+          [](const auto& a, const auto& b) {
+            if constexpr (std::is_same_v<std::decay_t<decltype(a)>, SectionPlane>) {
+              return a.section < b;
+            } else {
+              return a < b.section;
+            }
+          });
+      for (auto it = range.first; it != range.second; ++it) {
+        if (same_plane(planes_[i], *it)) {
+          const std::uint32_t a = find_root(static_cast<std::uint32_t>(i));
+          const std::uint32_t b = find_root(static_cast<std::uint32_t>(it - first));
+          parent_[std::max(a, b)] = std::min(a, b);
+        }
+      }
+    }
+  }
+}
+
+void PlaneMerger::set_polygon(Candidate& candidate, std::span<const Eigen::Vector3d> points) noexcept {
+  const auto [u, v] = plane_basis(candidate.fit.normal_unit);
+  const Eigen::Vector3d origin = candidate.fit.centroid_m;
+  const std::size_t n = std::min(points.size(), scratch_2d_.size());
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d local = points[i] - origin;
+    scratch_2d_[i] = Eigen::Vector2d(u.dot(local), v.dot(local));
+  }
+  std::size_t size = convex_hull(scratch_2d_.first(n), scratch_hull_);
+  size = simplify_polygon(scratch_hull_, size, msg::kMaxPolygonVertices);
+  candidate.polygon_size = static_cast<std::uint8_t>(size);
+  candidate.box_min_m = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  candidate.box_max_m = -candidate.box_min_m;
+  for (std::size_t i = 0; i < size; ++i) {
+    const Eigen::Vector3d p = origin + scratch_hull_[i].x() * u + scratch_hull_[i].y() * v;
+    candidate.polygon_m[i] = p;
+    candidate.box_min_m = candidate.box_min_m.cwiseMin(p);
+    candidate.box_max_m = candidate.box_max_m.cwiseMax(p);
+  }
+}
+
+void PlaneMerger::build_candidates() noexcept {
+  for (std::size_t i = 0; i < plane_count_; ++i) {
+    member_order_[i] = static_cast<std::uint32_t>(i);
+    find_root(static_cast<std::uint32_t>(i));
+  }
+  std::sort(member_order_.begin(), member_order_.begin() + static_cast<std::ptrdiff_t>(plane_count_),
+            [this](std::uint32_t a, std::uint32_t b) {
+              return parent_[a] != parent_[b] ? parent_[a] < parent_[b] : a < b;
+            });
+  candidate_count_ = 0;
+  for (std::size_t i = 0; i < plane_count_;) {
+    const std::uint32_t root = parent_[member_order_[i]];
+    Candidate candidate;
+    std::size_t corners = 0;
+    for (; i < plane_count_ && parent_[member_order_[i]] == root; ++i) {
+      const SectionPlane& plane = planes_[member_order_[i]];
+      candidate.moments.merge(plane.moments);
+      for (const Eigen::Vector3f& corner : plane.corners_m) {
+        scratch_points_[corners++] = corner.cast<double>();
+      }
+    }
+    if (candidate_count_ == candidates_.size()) {
+      ++counters_.planes_dropped_full;
+      continue;
+    }
+    candidate.fit = fit_plane(candidate.moments);
+    if (!candidate.fit.valid) {
+      continue;
+    }
+    set_polygon(candidate, scratch_points_.first(corners));
+    candidates_[candidate_count_++] = candidate;
+  }
+}
+
+bool PlaneMerger::can_merge(const Candidate& big, const Candidate& small) noexcept {
+  const double reach_m =
+      config_.merge_gap_m + config_.merge_gap_fraction * (big.box_max_m - big.box_min_m).norm();
+  if (!boxes_within(big.box_min_m, big.box_max_m, small.box_min_m, small.box_max_m, reach_m)) {
+    return false;
+  }
+  const Eigen::Vector3d& n = big.fit.normal_unit;
+  if (std::abs(n.dot(small.fit.normal_unit)) < cos_deg(config_.merge_angle_deg)) {
+    return false;
+  }
+  // The smaller plane's centroid lies on the bigger plane.
+  if (std::abs(n.dot(small.fit.centroid_m) - big.fit.d_m) > config_.merge_distance_m) {
+    return false;
+  }
+  const auto [u, v] = plane_basis(n);
+  const auto project = [&](const Candidate& c, std::span<Eigen::Vector2d> out) {
+    for (std::size_t i = 0; i < c.polygon_size; ++i) {
+      const Eigen::Vector3d local = c.polygon_m[i] - big.fit.centroid_m;
+      out[i] = Eigen::Vector2d(u.dot(local), v.dot(local));
+    }
+    return out.first(c.polygon_size);
+  };
+  const auto a = project(big, scratch_hull_);
+  const auto b = project(small, scratch_other_);
+  // As Tavares and Padilha bridge longer gaps between longer segments, a plane bridges gaps up
+  // to a fraction of its own size: occlusions (trees before a wall) leave holes that scale
+  // with the wall, not with a fixed distance.
+  return convex_polygon_gap(a, b) <= reach_m;
+}
+
+void PlaneMerger::absorb(Candidate& big, const Candidate& small) noexcept {
+  big.moments.merge(small.moments);
+  big.fit = fit_plane(big.moments);
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < big.polygon_size; ++i) {
+    scratch_points_[n++] = big.polygon_m[i];
+  }
+  for (std::size_t i = 0; i < small.polygon_size; ++i) {
+    scratch_points_[n++] = small.polygon_m[i];
+  }
+  set_polygon(big, scratch_points_.first(n));
+  ++counters_.stage2_merges;
+}
+
+std::size_t PlaneMerger::merge_candidates() noexcept {
+  std::span<std::uint32_t> order = member_order_.first(candidate_count_);
+  for (std::size_t i = 0; i < candidate_count_; ++i) {
+    order[i] = static_cast<std::uint32_t>(i);
+  }
+  const auto by_support = [this](std::uint32_t a, std::uint32_t b) {
+    const double wa = candidates_[a].moments.weight;
+    const double wb = candidates_[b].moments.weight;
+    return wa != wb ? wa > wb : a < b;
+  };
+  constexpr int kMaxPasses = 4;
+  for (int pass = 0; pass < kMaxPasses; ++pass) {
+    std::sort(order.begin(), order.end(), by_support);
+    bool merged = false;
+    for (std::size_t i = 1; i < order.size(); ++i) {
+      Candidate& small = candidates_[order[i]];
+      if (!small.alive) {
+        continue;
+      }
+      for (std::size_t j = 0; j < i; ++j) {
+        Candidate& big = candidates_[order[j]];
+        if (big.alive && can_merge(big, small)) {
+          absorb(big, small);
+          small.alive = false;
+          merged = true;
+          break;
+        }
+      }
+    }
+    if (!merged) {
+      break;
+    }
+  }
+  return static_cast<std::size_t>(
+      std::count_if(order.begin(), order.end(), [this](std::uint32_t i) { return candidates_[i].alive; }));
+}
+
+void PlaneMerger::label_and_emit() noexcept {
+  const double sin_vertical = sin_deg(config_.label_tolerance_deg);
+  const double cos_horizontal = cos_deg(config_.label_tolerance_deg);
+  std::span<std::uint32_t> order = member_order_.first(candidate_count_);  // by support, from merge
+  // The ground: the lowest horizontal plane with at least a quarter of the largest one's points.
+  double largest_horizontal = 0.0;
+  for (const std::uint32_t i : order) {
+    const Candidate& c = candidates_[i];
+    if (c.alive && std::abs(c.fit.normal_unit.z()) >= cos_horizontal) {
+      largest_horizontal = std::max(largest_horizontal, c.moments.weight);
+    }
+  }
+  const Candidate* ground = nullptr;
+  for (const std::uint32_t i : order) {
+    const Candidate& c = candidates_[i];
+    if (c.alive && std::abs(c.fit.normal_unit.z()) >= cos_horizontal &&
+        c.moments.weight >= 0.25 * largest_horizontal &&
+        (ground == nullptr || c.fit.centroid_m.z() < ground->fit.centroid_m.z())) {
+      ground = &c;
+    }
+  }
+  const auto height_above_ground = [&](const Eigen::Vector3d& p) {
+    const Eigen::Vector3d& n = ground->fit.normal_unit;
+    const double ground_z = (ground->fit.d_m - n.x() * p.x() - n.y() * p.y()) / n.z();
+    return p.z() - ground_z;
+  };
+  output_count_ = 0;
+  for (const std::uint32_t i : order) {
+    const Candidate& c = candidates_[i];
+    if (!c.alive || c.moments.weight < config_.min_reported_support) {
+      continue;
+    }
+    msg::PlanePatch plane;
+    Eigen::Vector3d n = c.fit.normal_unit;
+    double d = c.fit.d_m;
+    if ((std::abs(n.z()) >= 0.5 && n.z() < 0.0) || (std::abs(n.z()) < 0.5 && d < 0.0)) {
+      n = -n;  // up for horizontal planes, away from the frame's origin for the others
+      d = -d;
+    }
+    if (std::abs(n.z()) <= sin_vertical) {
+      const auto [u, v] = plane_basis(n);
+      double u_min = 1e300, u_max = -1e300, z_min = 1e300, z_max = -1e300;
+      for (std::size_t k = 0; k < c.polygon_size; ++k) {
+        const double along = u.dot(c.polygon_m[k]);
+        u_min = std::min(u_min, along);
+        u_max = std::max(u_max, along);
+        z_min = std::min(z_min, c.polygon_m[k].z());
+        z_max = std::max(z_max, c.polygon_m[k].z());
+      }
+      const bool big = z_max - z_min >= config_.min_wall_height_m &&
+                       u_max - u_min >= config_.min_wall_width_m;
+      plane.kind = big ? msg::PlaneKind::kWall : msg::PlaneKind::kOther;
+    } else if (std::abs(n.z()) >= cos_horizontal && ground != nullptr) {
+      const double height = height_above_ground(c.fit.centroid_m);
+      plane.kind = std::abs(height) <= config_.ground_step_m ? msg::PlaneKind::kGround
+                   : height >= config_.min_roof_height_m     ? msg::PlaneKind::kRoof
+                                                             : msg::PlaneKind::kOther;
+    }
+    plane.normal = n;
+    plane.d_m = d;
+    plane.support = c.moments.weight;
+    plane.rmse_m = c.fit.rmse_m;
+    plane.centroid_m = c.fit.centroid_m;
+    plane.polygon_size = c.polygon_size;
+    std::copy(c.polygon_m.begin(), c.polygon_m.begin() + c.polygon_size, plane.polygon_m.begin());
+    output_[output_count_++] = plane;
+  }
+  // Largest first, numbered from 1.
+  std::sort(output_.begin(), output_.begin() + static_cast<std::ptrdiff_t>(output_count_),
+            [](const msg::PlanePatch& a, const msg::PlanePatch& b) {
+              if (a.support != b.support) {
+                return a.support > b.support;
+              }
+              return std::tie(a.centroid_m.x(), a.centroid_m.y(), a.centroid_m.z()) <
+                     std::tie(b.centroid_m.x(), b.centroid_m.y(), b.centroid_m.z());
+            });
+  for (std::size_t i = 0; i < output_count_; ++i) {
+    output_[i].id = static_cast<std::uint32_t>(i + 1);
+  }
+}
+
+std::span<const msg::PlanePatch> PlaneMerger::merge(const SectionGrid& sections) noexcept {
+  join_neighbouring_section_planes(sections);
+  build_candidates();
+  merge_candidates();
+  label_and_emit();
+  return output_.first(output_count_);
+}
+
+std::size_t PlaneMerger::memory_bytes() const noexcept {
+  return planes_.size_bytes() + parent_.size_bytes() + member_order_.size_bytes() +
+         candidates_.size_bytes() + scratch_points_.size_bytes() + scratch_2d_.size_bytes() +
+         scratch_hull_.size_bytes() + scratch_other_.size_bytes() + output_.size_bytes();
+}
+
+}  // namespace blockmap::planes

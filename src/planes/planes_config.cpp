@@ -1,0 +1,73 @@
+#include "blockmap/planes/planes_config.hpp"
+
+#include <cmath>
+
+namespace blockmap::planes {
+namespace {
+
+bool whole_multiple(double a, double b) {
+  const double ratio = a / b;
+  return ratio >= 1.0 - 1e-9 && std::abs(ratio - std::round(ratio)) < 1e-6;
+}
+
+}  // namespace
+
+std::string validate(const PlanesConfig& c) {
+  if (!(c.sample_size_m > 0.0)) {
+    return "sample_size_m must be > 0";
+  }
+  if (!whole_multiple(c.section_stride_m, c.sample_size_m)) {
+    return "section_stride_m must be a whole multiple of sample_size_m";
+  }
+  if (!whole_multiple(c.section_size_m, c.section_stride_m)) {
+    return "section_size_m must be a whole multiple of section_stride_m";
+  }
+  if (std::lround(c.section_size_m / c.section_stride_m) > 4) {
+    return "section_size_m may be at most 4 strides (each point is in (size/stride)^3 sections)";
+  }
+  if (!(c.d_bin_m > 0.0) || c.d_bin_m > c.section_size_m) {
+    return "d_bin_m must be > 0 and at most section_size_m";
+  }
+  if (!(c.angle_bin_deg >= 0.25 && c.angle_bin_deg <= 30.0)) {
+    return "angle_bin_deg must be in [0.25, 30]";
+  }
+  if (!(c.orientation_tolerance_deg >= 0.0 && c.orientation_tolerance_deg < 45.0)) {
+    return "orientation_tolerance_deg must be in [0, 45)";
+  }
+  if (!(c.normal_kernel_deg > 0.0 && c.normal_kernel_deg <= 30.0)) {
+    return "normal_kernel_deg must be in (0, 30]";
+  }
+  if (!(c.max_planarity_ratio > 0.0 && c.max_planarity_ratio <= 1.0) ||
+      !(c.max_line_ratio > 0.0 && c.max_line_ratio <= 1.0)) {
+    return "max_planarity_ratio and max_line_ratio must be in (0, 1]";
+  }
+  if (!(c.min_votes >= 3.0)) {
+    return "min_votes must be >= 3";
+  }
+  if (c.max_planes_per_section < 1 || c.max_planes_per_section > 64) {
+    return "max_planes_per_section must be in [1, 64]";
+  }
+  if (!(c.inlier_distance_m > 0.0) || !(c.inlier_angle_deg > 0.0 && c.inlier_angle_deg <= 90.0)) {
+    return "inlier_distance_m must be > 0 and inlier_angle_deg in (0, 90]";
+  }
+  if (!(c.merge_angle_deg > 0.0 && c.merge_angle_deg < 45.0) || !(c.merge_distance_m > 0.0) ||
+      !(c.merge_gap_m >= 0.0) || !(c.merge_gap_fraction >= 0.0 && c.merge_gap_fraction <= 1.0)) {
+    return "merge_angle_deg must be in (0, 45), merge_distance_m > 0, merge_gap_m >= 0, "
+           "merge_gap_fraction in [0, 1]";
+  }
+  if (!(c.label_tolerance_deg > 0.0 && c.label_tolerance_deg < 45.0)) {
+    return "label_tolerance_deg must be in (0, 45)";
+  }
+  if (c.max_samples < 1 || c.max_samples_per_section < 1 || c.max_patches < 1 || c.max_planes < 1) {
+    return "capacities must be >= 1";
+  }
+  if (c.max_samples >= (std::size_t{1} << 31) || c.max_patches >= (std::size_t{1} << 31)) {
+    return "max_samples and max_patches must be < 2^31";
+  }
+  if (c.max_patches < c.max_planes) {
+    return "max_patches must be >= max_planes";
+  }
+  return {};
+}
+
+}  // namespace blockmap::planes
