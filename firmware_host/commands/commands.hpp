@@ -25,6 +25,9 @@ Command add_info_command(CLI::App& app);
 // `blockmap decode PROTOCOL FILE`: a raw capture as JSON Lines.
 Command add_decode_command(CLI::App& app);
 
+// `blockmap planes CLOUD`: the plane list of a point cloud file.
+Command add_planes_command(CLI::App& app);
+
 // `blockmap simulate --world NAME --out DIR`: a recorded run of the simulated robot.
 Command add_simulate_command(CLI::App& app);
 

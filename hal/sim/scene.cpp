@@ -7,8 +7,8 @@
 namespace blockmap::hal::sim {
 namespace {
 
-constexpr double kMinRangeM = 1e-3;  // hits closer than this are the sensor's own housing
-constexpr double kMarginM = 30.0;    // ground beyond the outermost object
+constexpr double kMinRangeM = 1e-3;     // hits closer than this are the sensor's own housing
+constexpr double kMarginM = 30.0;       // ground beyond the outermost object
 constexpr double kGroundReachM = 80.0;  // the LMS2xx's longest range
 
 // Ray-crossing test of a point against a polygon (even-odd).

@@ -15,8 +15,8 @@ void TruthCloudSink::draw_scan_error() {
                Eigen::AngleAxisd(angles.y(), Eigen::Vector3d::UnitY()) *
                Eigen::AngleAxisd(angles.x(), Eigen::Vector3d::UnitX()))
                   .toRotationMatrix();
-  shift_m_ = Eigen::Vector3d(random_.gaussian(), random_.gaussian(), random_.gaussian()) *
-             noise_.shift_m;
+  shift_m_ =
+      Eigen::Vector3d(random_.gaussian(), random_.gaussian(), random_.gaussian()) * noise_.shift_m;
 }
 
 void TruthCloudSink::on_beam(std::size_t laser, const BeamTruth& beam) {

@@ -82,8 +82,7 @@ bool HoughAccumulator::is_local_maximum(std::uint32_t row, std::uint32_t d_bin,
   return true;
 }
 
-std::size_t HoughAccumulator::find_peaks(float min_votes,
-                                         std::span<HoughPeak> out) const noexcept {
+std::size_t HoughAccumulator::find_peaks(float min_votes, std::span<HoughPeak> out) const noexcept {
   std::size_t count = 0;
   const auto consider_bin = [&](std::uint32_t row, std::uint32_t d_bin) {
     const float window = window_votes(row, d_bin);

@@ -11,7 +11,9 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 
-double degrees_to_radians(double degrees) { return degrees * kPi / 180.0; }
+double degrees_to_radians(double degrees) {
+  return degrees * kPi / 180.0;
+}
 
 // Cells in band k: the circumference at theta_k over the cell width, at least one. The
 // equator band holds half a circle (n and -n are the same plane there).
@@ -63,8 +65,8 @@ void OrientationGrid::init(Arena& arena, double angle_bin_deg, OrientationMode m
       cell_normal_[cell] = Eigen::Vector3d(std::sin(theta) * std::cos(phi),
                                            std::sin(theta) * std::sin(phi), std::cos(theta))
                                .cast<float>();
-      cell_row_[cell] = searched(theta, mode, tolerance_rad) ? static_cast<std::int32_t>(rows++)
-                                                             : kNotSearched;
+      cell_row_[cell] =
+          searched(theta, mode, tolerance_rad) ? static_cast<std::int32_t>(rows++) : kNotSearched;
     }
   }
   row_cell_ = arena.allocate_array<std::uint32_t>(rows, "planes.orientation_grid");
@@ -73,9 +75,8 @@ void OrientationGrid::init(Arena& arena, double angle_bin_deg, OrientationMode m
       row_cell_[static_cast<std::uint32_t>(cell_row_[cell])] = cell;
     }
   }
-  neighbour_table_ =
-      arena.allocate_array<Neighbour>(static_cast<std::size_t>(rows) * kMaxNeighbours,
-                                      "planes.orientation_grid");
+  neighbour_table_ = arena.allocate_array<Neighbour>(
+      static_cast<std::size_t>(rows) * kMaxNeighbours, "planes.orientation_grid");
   neighbour_count_ = arena.allocate_array<std::uint8_t>(rows, "planes.orientation_grid");
   build_neighbours();
   build_kernels(arena, static_cast<float>(degrees_to_radians(kernel_deg)));
@@ -110,7 +111,7 @@ std::uint32_t OrientationGrid::cell_of(const Eigen::Vector3f& normal) const noex
   const Eigen::Vector3f n = normal.z() < 0.0f ? Eigen::Vector3f(-normal) : normal;
   const float theta = std::acos(std::min(n.z(), 1.0f));
   const auto band = std::min<std::uint32_t>(
-      static_cast<std::uint32_t>(theta / band_step_rad_ + 0.5f), band_count_ - 1);
+      static_cast<std::uint32_t>(std::lround(theta / band_step_rad_)), band_count_ - 1);
   const std::uint32_t cells = band_cells_[band];
   constexpr float kPiF = std::numbers::pi_v<float>;
   float phi = std::atan2(n.y(), n.x());

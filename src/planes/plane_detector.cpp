@@ -1,6 +1,7 @@
 #include "blockmap/planes/plane_detector.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -26,7 +27,8 @@ void PlaneDetector::init(Arena& arena, const PlanesConfig& config) {
   orientations_.init(arena, config.angle_bin_deg, config.orientation_mode,
                      config.orientation_tolerance_deg, config.normal_kernel_deg);
   voxels_.init(arena, config.sample_size_m, config.max_samples);
-  sections_.init(arena, config.max_samples, whole_ratio(config.section_stride_m, config.sample_size_m),
+  sections_.init(arena, config.max_samples,
+                 whole_ratio(config.section_stride_m, config.sample_size_m),
                  whole_ratio(config.section_size_m, config.section_stride_m), config.sample_size_m);
   // d relative to the section centre reaches half the section's diagonal.
   const double half_range_m = 0.5 * std::sqrt(3.0) * config.section_size_m + config.d_bin_m;
@@ -34,12 +36,49 @@ void PlaneDetector::init(Arena& arena, const PlanesConfig& config) {
   accumulator_.init(arena, orientations_, half_range_m, config.d_bin_m,
                     config.max_samples_per_section * 32);
   merger_.init(arena, config);
-  section_samples_ = arena.allocate_array<std::uint32_t>(config.max_samples_per_section, "planes.detector");
+  section_samples_ =
+      arena.allocate_array<std::uint32_t>(config.max_samples_per_section, "planes.detector");
   section_positions_ =
       arena.allocate_array<Eigen::Vector3f>(config.max_samples_per_section, "planes.detector");
   inliers_ = arena.allocate_array<std::uint32_t>(config.max_samples_per_section, "planes.detector");
   peaks_ = arena.allocate_array<HoughPeak>(config.max_planes_per_section, "planes.detector");
   cos_inlier_angle_ = static_cast<float>(std::cos(config.inlier_angle_deg * kDegToRad));
+}
+
+std::size_t PlaneDetector::arena_budget_bytes(const PlanesConfig& config) noexcept {
+  // Orientation cells over the half sphere, plus one per band; each has a surface kernel (a
+  // disc of normal_kernel_deg), a line kernel (a half circle) and neighbour entries.
+  const double step = config.angle_bin_deg;
+  const double cells =
+      2.0 * 3.14159265 * (180.0 / 3.14159265 / step) * (180.0 / 3.14159265 / step) + 90.0 / step +
+      2.0;
+  const double kernel =
+      3.14159265 * std::pow(config.normal_kernel_deg / step + 1.5, 2.0) + 2.0 * 180.0 / step + 8.0;
+  const double grid =
+      cells * (sizeof(Eigen::Vector3f) + 3 * sizeof(std::uint32_t) + 2 * sizeof(std::uint32_t) +
+               kernel * sizeof(std::uint32_t) +
+               OrientationGrid::kMaxNeighbours * sizeof(OrientationGrid::Neighbour) + 1);
+  const double half_range = 0.5 * std::sqrt(3.0) * config.section_size_m + config.d_bin_m;
+  const double d_bins = 2.0 * std::ceil(half_range / config.d_bin_m);
+  const auto samples = static_cast<double>(config.max_samples);
+  const double index_slots = 2.0 * static_cast<double>(std::bit_ceil(2 * config.max_samples));
+  const double voxels =
+      samples * sizeof(Voxel) + index_slots * (sizeof(CellKey) + sizeof(std::uint32_t));
+  const double sections = samples * (16.0 + 8.0 + sizeof(CellKey));  // order, ranges, section keys
+  const double accumulator =
+      cells * d_bins * sizeof(float) +
+      static_cast<double>(config.max_samples_per_section) * 32 * sizeof(std::uint32_t);
+  const auto patches = static_cast<double>(config.max_patches);
+  const auto planes = static_cast<double>(config.max_planes);
+  const double merger = patches * (sizeof(SectionPlane) + 2 * sizeof(std::uint32_t) +
+                                   4 * (sizeof(Eigen::Vector3d) + 2 * sizeof(Eigen::Vector2d))) +
+                        planes * (sizeof(msg::PlanePatch) + 1100.0) + 4096.0;
+  const double section = static_cast<double>(config.max_samples_per_section) *
+                             (2 * sizeof(std::uint32_t) + sizeof(Eigen::Vector3f)) +
+                         static_cast<double>(config.max_planes_per_section) * sizeof(HoughPeak);
+  // Alignment padding: a few dozen allocations of at most 64 bytes each.
+  return static_cast<std::size_t>(grid + voxels + sections + accumulator + merger + section) +
+         (std::size_t{1} << 16);
 }
 
 void PlaneDetector::clear() noexcept {
@@ -128,8 +167,7 @@ void PlaneDetector::detect_in_section(CellKey section) noexcept {
   if (!any_free) {
     return;  // every sample already belongs to a plane of an earlier section
   }
-  const std::size_t peaks =
-      accumulator_.find_peaks(static_cast<float>(config_.min_votes), peaks_);
+  const std::size_t peaks = accumulator_.find_peaks(static_cast<float>(config_.min_votes), peaks_);
   stats_.peaks += peaks;
   for (std::size_t i = 0; i < peaks; ++i) {
     SectionPlane plane;
@@ -145,11 +183,11 @@ bool PlaneDetector::refine(const HoughPeak& peak, const Eigen::Vector3f& section
   const std::span<Voxel> voxels = voxels_.voxels();
   const Eigen::Vector3d centre = section_centre_m.cast<double>();
   Eigen::Vector3d normal = peak.normal.cast<double>();
-  double d_m = peak.d_m;  // relative to the section centre
+  auto d_m = static_cast<double>(peak.d_m);  // relative to the section centre
   PointMoments moments;
   std::size_t inliers = 0;
-  for (std::uint32_t iteration = 0; iteration < std::max<std::uint32_t>(config_.refine_iterations, 1);
-       ++iteration) {
+  for (std::uint32_t iteration = 0;
+       iteration < std::max<std::uint32_t>(config_.refine_iterations, 1); ++iteration) {
     const Eigen::Vector3f n = normal.cast<float>();
     const auto d = static_cast<float>(d_m);
     moments = PointMoments{};
@@ -158,7 +196,8 @@ bool PlaneDetector::refine(const HoughPeak& peak, const Eigen::Vector3f& section
       const Voxel& voxel = voxels[section_samples_[i]];
       // Scattered samples (foliage, corners where two walls meet) would pull the fit round.
       if (voxel.owner >= 0 || voxel.point_count == 0 || voxel.shape == LocalShape::kScattered ||
-          std::abs(n.dot(section_positions_[i]) - d) > static_cast<float>(config_.inlier_distance_m) ||
+          std::abs(n.dot(section_positions_[i]) - d) >
+              static_cast<float>(config_.inlier_distance_m) ||
           (voxel.shape == LocalShape::kPlanar && std::abs(voxel.axis.dot(n)) < cos_inlier_angle_)) {
         continue;
       }
@@ -218,8 +257,9 @@ void PlaneDetector::set_corners(const Eigen::Vector3d& normal, double d_m, std::
     v_max = std::max(v_max, v.dot(p));
   }
   const Eigen::Vector3d foot = normal * d_m;
-  out.corners_m = {(foot + u_min * u + v_min * v).cast<float>(), (foot + u_max * u + v_min * v).cast<float>(),
-                   (foot + u_max * u + v_max * v).cast<float>(), (foot + u_min * u + v_max * v).cast<float>()};
+  out.corners_m = {
+      (foot + u_min * u + v_min * v).cast<float>(), (foot + u_max * u + v_min * v).cast<float>(),
+      (foot + u_max * u + v_max * v).cast<float>(), (foot + u_min * u + v_max * v).cast<float>()};
 }
 
 std::size_t PlaneDetector::memory_bytes() const noexcept {

@@ -13,12 +13,17 @@
 namespace blockmap::planes {
 namespace {
 
-double cos_deg(double degrees) { return std::cos(degrees * std::numbers::pi / 180.0); }
-double sin_deg(double degrees) { return std::sin(degrees * std::numbers::pi / 180.0); }
+double cos_deg(double degrees) {
+  return std::cos(degrees * std::numbers::pi / 180.0);
+}
+double sin_deg(double degrees) {
+  return std::sin(degrees * std::numbers::pi / 180.0);
+}
 
 bool boxes_within(const Eigen::Vector3d& a_min, const Eigen::Vector3d& a_max,
                   const Eigen::Vector3d& b_min, const Eigen::Vector3d& b_max, double gap) {
-  return (a_min.array() - gap <= b_max.array()).all() && (b_min.array() - gap <= a_max.array()).all();
+  return (a_min.array() - gap <= b_max.array()).all() &&
+         (b_min.array() - gap <= a_max.array()).all();
 }
 
 }  // namespace
@@ -32,7 +37,8 @@ void PlaneMerger::init(Arena& arena, const PlanesConfig& config) {
   // Every corner of every section plane of one candidate, and two polygons side by side.
   scratch_points_ = arena.allocate_array<Eigen::Vector3d>(4 * config.max_patches, "planes.merger");
   scratch_2d_ = arena.allocate_array<Eigen::Vector2d>(4 * config.max_patches + 1, "planes.merger");
-  scratch_hull_ = arena.allocate_array<Eigen::Vector2d>(4 * config.max_patches + 1, "planes.merger");
+  scratch_hull_ =
+      arena.allocate_array<Eigen::Vector2d>(4 * config.max_patches + 1, "planes.merger");
   scratch_other_ = arena.allocate_array<Eigen::Vector2d>(msg::kMaxPolygonVertices, "planes.merger");
   output_ = arena.allocate_array<msg::PlanePatch>(config.max_planes, "planes.merger");
   clear();
@@ -82,9 +88,8 @@ void PlaneMerger::join_neighbouring_section_planes(const SectionGrid& sections) 
   for (std::size_t i = 0; i < plane_count_; ++i) {
     const std::size_t count = sections.later_neighbours(planes_[i].section, neighbours);
     for (std::size_t k = 0; k < count; ++k) {
-      const auto range = std::equal_range(
-          first, last, neighbours[k],
-          [](const auto& a, const auto& b) {
+      const auto range =
+          std::equal_range(first, last, neighbours[k], [](const auto& a, const auto& b) {
             if constexpr (std::is_same_v<std::decay_t<decltype(a)>, SectionPlane>) {
               return a.section < b;
             } else {
@@ -102,7 +107,8 @@ void PlaneMerger::join_neighbouring_section_planes(const SectionGrid& sections) 
   }
 }
 
-void PlaneMerger::set_polygon(Candidate& candidate, std::span<const Eigen::Vector3d> points) noexcept {
+void PlaneMerger::set_polygon(Candidate& candidate,
+                              std::span<const Eigen::Vector3d> points) noexcept {
   const auto [u, v] = plane_basis(candidate.fit.normal_unit);
   const Eigen::Vector3d origin = candidate.fit.centroid_m;
   const std::size_t n = std::min(points.size(), scratch_2d_.size());
@@ -128,7 +134,8 @@ void PlaneMerger::build_candidates() noexcept {
     member_order_[i] = static_cast<std::uint32_t>(i);
     find_root(static_cast<std::uint32_t>(i));
   }
-  std::sort(member_order_.begin(), member_order_.begin() + static_cast<std::ptrdiff_t>(plane_count_),
+  std::sort(member_order_.begin(),
+            member_order_.begin() + static_cast<std::ptrdiff_t>(plane_count_),
             [this](std::uint32_t a, std::uint32_t b) {
               return parent_[a] != parent_[b] ? parent_[a] < parent_[b] : a < b;
             });
@@ -171,7 +178,9 @@ bool PlaneMerger::can_merge(const Candidate& big, const Candidate& small) noexce
   if (std::abs(n.dot(small.fit.centroid_m) - big.fit.d_m) > config_.merge_distance_m) {
     return false;
   }
-  const auto [u, v] = plane_basis(n);
+  const std::pair<Eigen::Vector3d, Eigen::Vector3d> basis = plane_basis(n);
+  const Eigen::Vector3d& u = basis.first;
+  const Eigen::Vector3d& v = basis.second;
   const auto project = [&](const Candidate& c, std::span<Eigen::Vector2d> out) {
     for (std::size_t i = 0; i < c.polygon_size; ++i) {
       const Eigen::Vector3d local = c.polygon_m[i] - big.fit.centroid_m;
@@ -234,8 +243,8 @@ std::size_t PlaneMerger::merge_candidates() noexcept {
       break;
     }
   }
-  return static_cast<std::size_t>(
-      std::count_if(order.begin(), order.end(), [this](std::uint32_t i) { return candidates_[i].alive; }));
+  return static_cast<std::size_t>(std::count_if(
+      order.begin(), order.end(), [this](std::uint32_t i) { return candidates_[i].alive; }));
 }
 
 void PlaneMerger::label_and_emit() noexcept {
@@ -287,8 +296,8 @@ void PlaneMerger::label_and_emit() noexcept {
         z_min = std::min(z_min, c.polygon_m[k].z());
         z_max = std::max(z_max, c.polygon_m[k].z());
       }
-      const bool big = z_max - z_min >= config_.min_wall_height_m &&
-                       u_max - u_min >= config_.min_wall_width_m;
+      const bool big =
+          z_max - z_min >= config_.min_wall_height_m && u_max - u_min >= config_.min_wall_width_m;
       plane.kind = big ? msg::PlaneKind::kWall : msg::PlaneKind::kOther;
     } else if (std::abs(n.z()) >= cos_horizontal && ground != nullptr) {
       const double height = height_above_ground(c.fit.centroid_m);

@@ -33,7 +33,8 @@ bool inside_convex(const Eigen::Vector2d& p, std::span<const Eigen::Vector2d> po
 
 }  // namespace
 
-std::pair<Eigen::Vector3d, Eigen::Vector3d> plane_basis(const Eigen::Vector3d& normal_unit) noexcept {
+std::pair<Eigen::Vector3d, Eigen::Vector3d> plane_basis(
+    const Eigen::Vector3d& normal_unit) noexcept {
   const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
   Eigen::Vector3d u = up.cross(normal_unit);
   if (u.norm() < 0.5) {
@@ -43,7 +44,8 @@ std::pair<Eigen::Vector3d, Eigen::Vector3d> plane_basis(const Eigen::Vector3d& n
   return {u, normal_unit.cross(u).normalized()};
 }
 
-std::size_t convex_hull(std::span<Eigen::Vector2d> points, std::span<Eigen::Vector2d> hull) noexcept {
+std::size_t convex_hull(std::span<Eigen::Vector2d> points,
+                        std::span<Eigen::Vector2d> hull) noexcept {
   const std::size_t n = points.size();
   if (n < 3) {
     std::copy(points.begin(), points.end(), hull.begin());
@@ -76,8 +78,8 @@ std::size_t simplify_polygon(std::span<Eigen::Vector2d> polygon, std::size_t siz
     std::size_t weakest = 0;
     double weakest_area = std::numeric_limits<double>::infinity();
     for (std::size_t i = 0; i < size; ++i) {
-      const double area = std::abs(
-          cross(polygon[(i + size - 1) % size], polygon[i], polygon[(i + 1) % size]));
+      const double area =
+          std::abs(cross(polygon[(i + size - 1) % size], polygon[i], polygon[(i + 1) % size]));
       if (area < weakest_area) {
         weakest_area = area;
         weakest = i;
@@ -119,7 +121,8 @@ double convex_polygon_gap(std::span<const Eigen::Vector2d> a,
     for (std::size_t j = 0; j < b.size(); ++j) {
       const Eigen::Vector2d& b0 = b[j];
       const Eigen::Vector2d& b1 = b[(j + 1) % b.size()];
-      if (cross(a0, a1, b0) * cross(a0, a1, b1) < 0.0 && cross(b0, b1, a0) * cross(b0, b1, a1) < 0.0) {
+      if (cross(a0, a1, b0) * cross(a0, a1, b1) < 0.0 &&
+          cross(b0, b1, a0) * cross(b0, b1, a1) < 0.0) {
         return 0.0;
       }
     }

@@ -80,7 +80,8 @@ void SectionGrid::build(const VoxelGrid& grid) noexcept {
   }
   std::sort(sections_.begin(), sections_.begin() + static_cast<std::ptrdiff_t>(section_count_));
   section_count_ = static_cast<std::size_t>(
-      std::unique(sections_.begin(), sections_.begin() + static_cast<std::ptrdiff_t>(section_count_)) -
+      std::unique(sections_.begin(),
+                  sections_.begin() + static_cast<std::ptrdiff_t>(section_count_)) -
       sections_.begin());
 }
 
@@ -91,7 +92,8 @@ std::size_t SectionGrid::gather(CellKey section, std::span<std::uint32_t> out) n
   for (std::int64_t dx = 0; dx < k; ++dx) {
     for (std::int64_t dy = 0; dy < k; ++dy) {
       for (std::int64_t dz = 0; dz < k; ++dz) {
-        const std::uint32_t block = block_index_.find(pack_cell(s.x() + dx, s.y() + dy, s.z() + dz));
+        const std::uint32_t block =
+            block_index_.find(pack_cell(s.x() + dx, s.y() + dy, s.z() + dz));
         if (block == CellIndex::kAbsent) {
           continue;
         }

@@ -90,12 +90,15 @@ Eigen::Vector3f VoxelGrid::centroid_m(const Voxel& voxel) const noexcept {
   return centre_m(voxel.key) + Eigen::Vector3f(voxel.sum_m[0], voxel.sum_m[1], voxel.sum_m[2]) / n;
 }
 
-PointMoments VoxelGrid::moments(const Voxel& voxel, const Eigen::Vector3d& origin_m) const noexcept {
+PointMoments VoxelGrid::moments(const Voxel& voxel,
+                                const Eigen::Vector3d& origin_m) const noexcept {
   PointMoments local;
   local.weight = voxel.point_count;
-  local.sum = Eigen::Vector3d(voxel.sum_m[0], voxel.sum_m[1], voxel.sum_m[2]);
+  local.sum = Eigen::Vector3f(voxel.sum_m[0], voxel.sum_m[1], voxel.sum_m[2]).cast<double>();
   const float* s = voxel.sum_outer_m2;
-  local.sum_outer << s[0], s[1], s[2], s[1], s[3], s[4], s[2], s[4], s[5];
+  Eigen::Matrix3f outer;
+  outer << s[0], s[1], s[2], s[1], s[3], s[4], s[2], s[4], s[5];
+  local.sum_outer = outer.cast<double>();
   return local.shifted(centre_m(voxel.key).cast<double>() - origin_m);
 }
 
@@ -132,7 +135,8 @@ void VoxelGrid::add_or_remove(const Eigen::Vector3f& point_m, int sign) noexcept
   const Eigen::Vector3f local = (scaled - floored).array() - 0.5f;
   const float s = static_cast<float>(sign) * size_m_;
   const float s2 = s * size_m_;
-  voxel.point_count = static_cast<std::uint32_t>(static_cast<std::int64_t>(voxel.point_count) + sign);
+  voxel.point_count =
+      static_cast<std::uint32_t>(static_cast<std::int64_t>(voxel.point_count) + sign);
   voxel.sum_m[0] += s * local.x();
   voxel.sum_m[1] += s * local.y();
   voxel.sum_m[2] += s * local.z();
@@ -169,7 +173,7 @@ void VoxelGrid::estimate_shapes(std::uint32_t min_points, double max_planarity_r
           }
           // Parallel axis: moments about the other voxel's centre, moved to this one's.
           const Voxel& v = voxels_[other];
-          const float w = static_cast<float>(v.point_count);
+          const auto w = static_cast<float>(v.point_count);
           const float tx = static_cast<float>(dx) * size;
           const float ty = static_cast<float>(dy) * size;
           const float tz = static_cast<float>(dz) * size;

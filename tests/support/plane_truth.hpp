@@ -30,17 +30,20 @@ struct PlaneScore {
   std::size_t structural_planes = 0;  // reported wall, roof or ground
   std::size_t structural_real = 0;    // of those, matching some face
   std::size_t faces_reported_twice = 0;
-  double median_angle_deg = 0.0;   // over found faces, best match each
+  double median_angle_deg = 0.0;  // over found faces, best match each
   double median_offset_m = 0.0;
-  std::vector<int> missed_faces;   // ids
+  std::vector<int> missed_faces;            // ids
   std::vector<std::uint32_t> false_planes;  // ids of structural planes matching no face
 
   [[nodiscard]] double recall() const {
-    return faces_considered == 0 ? 1.0 : static_cast<double>(faces_found) / static_cast<double>(faces_considered);
+    return faces_considered == 0
+               ? 1.0
+               : static_cast<double>(faces_found) / static_cast<double>(faces_considered);
   }
   [[nodiscard]] double precision() const {
-    return structural_planes == 0 ? 1.0
-                                  : static_cast<double>(structural_real) / static_cast<double>(structural_planes);
+    return structural_planes == 0
+               ? 1.0
+               : static_cast<double>(structural_real) / static_cast<double>(structural_planes);
   }
 };
 
@@ -84,7 +87,8 @@ inline FaceMatch match_face(const hal::sim::TruthFace& face, const msg::PlanePat
 }
 
 inline bool structural(msg::PlaneKind kind) {
-  return kind == msg::PlaneKind::kWall || kind == msg::PlaneKind::kRoof || kind == msg::PlaneKind::kGround;
+  return kind == msg::PlaneKind::kWall || kind == msg::PlaneKind::kRoof ||
+         kind == msg::PlaneKind::kGround;
 }
 
 inline double median(std::vector<double> values) {
@@ -114,7 +118,7 @@ inline PlaneScore score_planes(std::span<const hal::sim::TruthFace> faces,
       if (!match.matches) {
         continue;
       }
-      structural_matches += structural(plane.kind) ? 1 : 0;
+      structural_matches += structural(plane.kind) ? 1U : 0U;
       if (!found || match.angle_deg < best.angle_deg) {
         best = match;
       }

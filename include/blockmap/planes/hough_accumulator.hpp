@@ -44,7 +44,8 @@ class HoughAccumulator {
     if (!(bin_f >= 0.0f) || bin_f >= static_cast<float>(d_bins_)) {
       return;
     }
-    const std::size_t cell = static_cast<std::size_t>(row) * d_bins_ + static_cast<std::uint32_t>(bin_f);
+    const std::size_t cell =
+        static_cast<std::size_t>(row) * d_bins_ + static_cast<std::uint32_t>(bin_f);
     if (votes_[cell] == 0.0f) {
       remember(cell);
     }
@@ -60,7 +61,7 @@ class HoughAccumulator {
 
   // Cells with at least min_votes window votes and none more in their neighbourhood
   // (neighbouring rows and d bins); strongest first, ties in grid order; at most out.size().
-  std::size_t find_peaks(float min_votes, std::span<HoughPeak> out) const noexcept;
+  [[nodiscard]] std::size_t find_peaks(float min_votes, std::span<HoughPeak> out) const noexcept;
 
   [[nodiscard]] std::uint32_t d_bins() const noexcept { return d_bins_; }
   [[nodiscard]] float bin_centre_m(std::uint32_t d_bin) const noexcept {

@@ -41,7 +41,7 @@ class OrientationGrid {
 
   [[nodiscard]] std::size_t cell_count() const noexcept { return cell_normal_.size(); }
   [[nodiscard]] std::size_t row_count() const noexcept { return row_cell_.size(); }
-  [[nodiscard]] double angle_bin_rad() const noexcept { return band_step_rad_; }
+  [[nodiscard]] float angle_bin_rad() const noexcept { return band_step_rad_; }
 
   // The cell a normal (either sign, unit length) falls in.
   [[nodiscard]] std::uint32_t cell_of(const Eigen::Vector3f& normal) const noexcept;
@@ -64,8 +64,8 @@ class OrientationGrid {
   // Visits every searched row whose cell normal is within radius_rad of `normal` (or of
   // -normal), each once: visit(row). At most `limit` rows; returns how many it visited.
   template <typename Visit>
-  std::size_t visit_rows_within(const Eigen::Vector3f& normal, float radius_rad,
-                                std::size_t limit, Visit&& visit) const;
+  std::size_t visit_rows_within(const Eigen::Vector3f& normal, float radius_rad, std::size_t limit,
+                                Visit&& visit) const;
 
   // Every row whose cell normal is perpendicular to `direction` within half a cell: the
   // planes that contain a line. Visits each row once.
@@ -100,8 +100,8 @@ class OrientationGrid {
 // ---- templates ----
 
 template <typename Visit>
-void OrientationGrid::visit_band_cells_near(std::uint32_t band, float phi_rad,
-                                            float half_width_rad, Visit&& visit) const {
+void OrientationGrid::visit_band_cells_near(std::uint32_t band, float phi_rad, float half_width_rad,
+                                            Visit&& visit) const {
   constexpr float kTwoPi = 6.28318530717958647692f;
   constexpr float kPi = 3.14159265358979323846f;
   const std::uint32_t cells = band_cells_[band];
@@ -135,29 +135,34 @@ std::size_t OrientationGrid::visit_rows_within(const Eigen::Vector3f& normal, fl
     const Eigen::Vector3f n = sign * normal;
     const float theta = std::acos(std::clamp(n.z(), -1.0f, 1.0f));
     const float phi = std::atan2(n.y(), n.x());
-    const auto lowest = static_cast<std::int64_t>(std::floor((theta - radius_rad) / band_step_rad_ + 0.5f));
-    const auto highest = static_cast<std::int64_t>(std::floor((theta + radius_rad) / band_step_rad_ + 0.5f));
+    const auto lowest =
+        static_cast<std::int64_t>(std::floor((theta - radius_rad) / band_step_rad_ + 0.5f));
+    const auto highest =
+        static_cast<std::int64_t>(std::floor((theta + radius_rad) / band_step_rad_ + 0.5f));
     for (std::int64_t band = std::max<std::int64_t>(lowest, 0);
          band <= std::min<std::int64_t>(highest, band_count_ - 1); ++band) {
       const float band_theta = static_cast<float>(band) * band_step_rad_;
       const float sin_theta = std::sin(band_theta);
-      const float half_width = sin_theta > radius_rad ? std::asin(std::min(1.0f, std::sin(radius_rad) / sin_theta)) : 4.0f;
-      visit_band_cells_near(static_cast<std::uint32_t>(band), phi, half_width, [&](std::uint32_t cell) {
-        const std::int32_t row = cell_row_[cell];
-        if (row < 0 || std::abs(cell_normal_[cell].dot(normal)) < cos_radius) {
-          return;
-        }
-        const auto row_index = static_cast<std::uint32_t>(row);
-        for (std::size_t i = 0; i < visited_count; ++i) {
-          if (visited[i] == row_index) {
-            return;
-          }
-        }
-        if (visited_count < capacity) {
-          visited[visited_count++] = row_index;
-          visit(row_index);
-        }
-      });
+      const float half_width = sin_theta > radius_rad
+                                   ? std::asin(std::min(1.0f, std::sin(radius_rad) / sin_theta))
+                                   : 4.0f;
+      visit_band_cells_near(
+          static_cast<std::uint32_t>(band), phi, half_width, [&](std::uint32_t cell) {
+            const std::int32_t row = cell_row_[cell];
+            if (row < 0 || std::abs(cell_normal_[cell].dot(normal)) < cos_radius) {
+              return;
+            }
+            const auto row_index = static_cast<std::uint32_t>(row);
+            for (std::size_t i = 0; i < visited_count; ++i) {
+              if (visited[i] == row_index) {
+                return;
+              }
+            }
+            if (visited_count < capacity) {
+              visited[visited_count++] = row_index;
+              visit(row_index);
+            }
+          });
     }
   }
   return visited_count;
@@ -181,7 +186,7 @@ void OrientationGrid::visit_rows_perpendicular_to(const Eigen::Vector3f& directi
   std::array<std::uint32_t, kRecent> recent{};
   recent.fill(static_cast<std::uint32_t>(-1));
   std::size_t recent_next = 0;
-  std::uint32_t first_cell = static_cast<std::uint32_t>(-1);
+  auto first_cell = static_cast<std::uint32_t>(-1);
   for (std::uint32_t i = 0; i < steps; ++i) {
     const float a = kPi * static_cast<float>(i) / static_cast<float>(steps);
     const Eigen::Vector3f n = std::cos(a) * u + std::sin(a) * v;

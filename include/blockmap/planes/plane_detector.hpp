@@ -42,6 +42,9 @@ class PlaneDetector {
  public:
   // Takes every buffer from the arena. CHECK-fails on an invalid configuration (validate()).
   void init(Arena& arena, const PlanesConfig& config);
+  // An arena budget that init() always fits in, for this configuration (an upper bound:
+  // the orientation grid's exact size is only known once built).
+  [[nodiscard]] static std::size_t arena_budget_bytes(const PlanesConfig& config) noexcept;
 
   // Forgets all points.
   void clear() noexcept;

@@ -9,8 +9,8 @@ namespace blockmap::planes {
 
 // In double: sums over a whole wall reach 1e7 m^2 and must keep centimetres.
 struct PointMoments {
-  double weight = 0.0;                          // number of points (or their total weight)
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();  // sum of p, relative to the owner's origin
+  double weight = 0.0;                                  // number of points (or their total weight)
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();        // sum of p, relative to the owner's origin
   Eigen::Matrix3d sum_outer = Eigen::Matrix3d::Zero();  // sum of p p^T
 
   void add(const Eigen::Vector3d& point, double point_weight = 1.0) noexcept {
@@ -46,7 +46,7 @@ struct PlaneFit {
   Eigen::Vector3d normal_unit = Eigen::Vector3d::UnitZ();
   double d_m = 0.0;  // relative to the moments' origin
   Eigen::Vector3d centroid_m = Eigen::Vector3d::Zero();
-  double rmse_m = 0.0;                                      // RMS point distance to the plane
+  double rmse_m = 0.0;                                       // RMS point distance to the plane
   Eigen::Vector3d eigenvalues_m2 = Eigen::Vector3d::Zero();  // ascending
 };
 

@@ -18,7 +18,8 @@ namespace blockmap::planes {
 
 // The convex hull of `points` (reordered in place), counter-clockwise, into `hull` (size at
 // least points.size() + 1). Returns the hull's vertex count.
-std::size_t convex_hull(std::span<Eigen::Vector2d> points, std::span<Eigen::Vector2d> hull) noexcept;
+std::size_t convex_hull(std::span<Eigen::Vector2d> points,
+                        std::span<Eigen::Vector2d> hull) noexcept;
 
 // Drops the vertices that add least area until at most max_vertices remain; returns the count.
 std::size_t simplify_polygon(std::span<Eigen::Vector2d> polygon, std::size_t size,

@@ -33,7 +33,8 @@ inline constexpr std::int64_t kCellKeyBias = std::int64_t{1} << 20;
           static_cast<std::int64_t>((key >> 21) & kMask) - kCellKeyBias,
           static_cast<std::int64_t>(key & kMask) - kCellKeyBias};
 }
-[[nodiscard]] constexpr bool cell_in_range(std::int64_t x, std::int64_t y, std::int64_t z) noexcept {
+[[nodiscard]] constexpr bool cell_in_range(std::int64_t x, std::int64_t y,
+                                           std::int64_t z) noexcept {
   return x > -kCellKeyBias && x < kCellKeyBias && y > -kCellKeyBias && y < kCellKeyBias &&
          z > -kCellKeyBias && z < kCellKeyBias;
 }
@@ -67,20 +68,20 @@ class CellIndex {
 struct Voxel {
   CellKey key = 0;
   std::uint32_t point_count = 0;
-  float sum_m[3] = {0, 0, 0};        // sum of (p - centre)
+  float sum_m[3] = {0, 0, 0};                  // sum of (p - centre)
   float sum_outer_m2[6] = {0, 0, 0, 0, 0, 0};  // xx xy xz yy yz zz of (p - centre)
   LocalShape shape = LocalShape::kTooFewPoints;
   Eigen::Vector3f axis = Eigen::Vector3f::UnitZ();  // normal (planar) or direction (linear)
   std::uint32_t axis_cell = 0;  // the orientation cell of the axis (the detector sets it)
-  std::int32_t owner = -1;  // the plane patch that took this voxel, or -1
+  std::int32_t owner = -1;      // the plane patch that took this voxel, or -1
 };
 
 class VoxelGrid {
  public:
   struct Counters {
     std::uint64_t points_added = 0;
-    std::uint64_t points_dropped_full = 0;      // the voxel was new and the grid full
-    std::uint64_t points_dropped_range = 0;     // beyond the packed key range
+    std::uint64_t points_dropped_full = 0;   // the voxel was new and the grid full
+    std::uint64_t points_dropped_range = 0;  // beyond the packed key range
     std::uint64_t points_dropped_nonfinite = 0;
   };
 
@@ -102,7 +103,8 @@ class VoxelGrid {
   // The mean of a voxel's points.
   [[nodiscard]] Eigen::Vector3f centroid_m(const Voxel& voxel) const noexcept;
   // A voxel's moments in double, relative to `origin_m`.
-  [[nodiscard]] PointMoments moments(const Voxel& voxel, const Eigen::Vector3d& origin_m) const noexcept;
+  [[nodiscard]] PointMoments moments(const Voxel& voxel,
+                                     const Eigen::Vector3d& origin_m) const noexcept;
   [[nodiscard]] const Counters& counters() const noexcept { return counters_; }
   [[nodiscard]] std::size_t memory_bytes() const noexcept {
     return voxels_.size_bytes() + index_.memory_bytes();

@@ -1,0 +1,136 @@
+// `blockmap planes CLOUD [--config FILE] [--out FILE]`: the plane list (docs: ARCHITECTURE.md
+// 4.1) of a point cloud file. "seconds" is the detection alone: voxelizing, Hough transform,
+// refinement and merging, not reading the file.
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <ostream>
+#include <string>
+
+#include "blockmap/core/arena.hpp"
+#include "blockmap/hal/cloud/point_cloud_file.hpp"
+#include "blockmap/hal/config/config_error.hpp"
+#include "blockmap/hal/config/planes_config.hpp"
+#include "blockmap/planes/plane_detector.hpp"
+#include "cli.hpp"
+#include "commands/commands.hpp"
+
+namespace blockmap::cli {
+namespace {
+
+struct PlanesOptions {
+  std::string cloud;
+  std::string config;
+  std::string out;
+};
+
+// Tenths of millimetres for positions, millionths for directions: what the numbers mean, no
+// more. Dividing by the inverse gives the double nearest the decimal, which prints short.
+double rounded(double value, double unit) {
+  const double per_unit = std::round(1.0 / unit);
+  return std::round(value * per_unit) / per_unit;
+}
+
+nlohmann::json vector_json(const Eigen::Vector3d& v, double unit) {
+  return nlohmann::json::array({rounded(v.x(), unit), rounded(v.y(), unit), rounded(v.z(), unit)});
+}
+
+nlohmann::json plane_json(const msg::PlanePatch& plane, const Eigen::Vector3d& origin_m) {
+  // The detector worked relative to the cloud's origin; the list is in the file's frame.
+  nlohmann::json polygon = nlohmann::json::array();
+  for (std::size_t i = 0; i < plane.polygon_size; ++i) {
+    polygon.push_back(vector_json(plane.polygon_m[i] + origin_m, 1e-4));
+  }
+  return {{"id", plane.id},
+          {"kind", std::string(msg::to_string(plane.kind))},
+          {"normal", vector_json(plane.normal, 1e-6)},
+          {"d", rounded(plane.d_m + plane.normal.dot(origin_m), 1e-4)},
+          {"support", plane.support},
+          {"rmse", rounded(plane.rmse_m, 1e-4)},
+          {"centroid", vector_json(plane.centroid_m + origin_m, 1e-4)},
+          {"polygon", polygon}};
+}
+
+int detect_planes(const PlanesOptions& options, std::ostream& out, std::ostream& err) {
+  planes::PlanesConfig config;
+  if (!options.config.empty()) {
+    config = hal::config::load_planes_config(options.config);
+  }
+  const hal::cloud::PointCloud cloud = hal::cloud::read_point_cloud(options.cloud);
+  // Capacities no larger than this cloud needs: a small cloud takes a small arena.
+  config.max_samples = std::clamp<std::size_t>(cloud.points_m.size(), 1024, config.max_samples);
+  config.max_patches =
+      std::max(config.max_planes, std::min(config.max_patches, config.max_samples));
+
+  Arena arena(planes::PlaneDetector::arena_budget_bytes(config));
+  planes::PlaneDetector detector;
+  detector.init(arena, config);
+  arena.seal();
+  const auto start = std::chrono::steady_clock::now();
+  detector.add_points(cloud.points_m);
+  const std::span<const msg::PlanePatch> planes = detector.detect();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  nlohmann::json list = nlohmann::json::array();
+  for (const msg::PlanePatch& plane : planes) {
+    list.push_back(plane_json(plane, cloud.origin_m));
+  }
+  const nlohmann::json document = {
+      {"planes", list}, {"points", cloud.points_m.size()}, {"seconds", rounded(seconds, 1e-6)}};
+  const planes::DetectionStats& stats = detector.stats();
+  err << "planes: " << options.cloud << " (" << cloud.format << "): " << cloud.points_m.size()
+      << " points";
+  if (cloud.skipped_nonfinite + cloud.skipped_no_return > 0) {
+    err << " (" << cloud.skipped_nonfinite << " non-finite and " << cloud.skipped_no_return
+        << " no-return skipped)";
+  }
+  err << ", " << stats.samples << " samples, " << stats.sections << " sections, "
+      << stats.section_planes << " section planes -> " << planes.size() << " planes in "
+      << seconds * 1e3 << " ms; " << (arena.used_bytes() >> 20) << " MiB\n";
+  if (stats.points_dropped > 0) {
+    err << "planes: warning: " << stats.points_dropped
+        << " points found no sample (raise max_samples)\n";
+  }
+  if (options.out.empty()) {
+    out << document.dump() << '\n';
+    return kExitOk;
+  }
+  std::ofstream file(options.out);
+  file << document.dump() << '\n';
+  if (!file) {
+    err << "blockmap: " << options.out << ": cannot write\n";
+    return kExitFailure;
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+Command add_planes_command(CLI::App& app) {
+  CLI::App* command = app.add_subcommand(
+      "planes",
+      "The plane list (JSON) of a point cloud file: .ply, .pcd, .xyz, .bin (KITTI), .3d (3DTK)");
+  auto options = std::make_shared<PlanesOptions>();
+  command->add_option("CLOUD", options->cloud, "the point cloud file")->required();
+  command->add_option("--config", options->config,
+                      "a TOML file whose [planes] table sets the detector (config/planes.toml)");
+  command->add_option("--out", options->out, "write the plane list here instead of stdout");
+  return {command, [options](std::ostream& out, std::ostream& err) {
+            try {
+              return detect_planes(*options, out, err);
+            } catch (const hal::ConfigError& error) {
+              err << "blockmap: " << error.what() << '\n';
+              return kExitUsage;
+            } catch (const hal::cloud::CloudFileError& error) {
+              err << "blockmap: " << error.what() << '\n';
+              return kExitFailure;
+            }
+          }};
+}
+
+}  // namespace blockmap::cli

@@ -1,0 +1,96 @@
+#include "blockmap/hal/config/planes_config.hpp"
+
+#include <fstream>
+#include <sstream>
+
+#include "toml_reader.hpp"
+
+namespace blockmap::hal::config {
+namespace {
+
+std::size_t capacity(TableReader& table, std::string_view key, std::size_t fallback) {
+  const std::int64_t value = table.integer_or(key, static_cast<std::int64_t>(fallback));
+  if (value < 1) {
+    table.fail(key, "must be >= 1");
+  }
+  return static_cast<std::size_t>(value);
+}
+
+}  // namespace
+
+planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view source) {
+  const toml::table document = parse_document(text, source);
+  TableReader root(document, std::string(source), "");
+  planes::PlanesConfig c;
+  auto table = root.table("planes");
+  if (!table) {
+    return c;
+  }
+  TableReader& t = *table;
+  c.sample_size_m = t.number_or("sample_size_m", c.sample_size_m);
+  c.section_size_m = t.number_or("section_size_m", c.section_size_m);
+  c.section_stride_m = t.number_or("section_stride_m", c.section_stride_m);
+  c.d_bin_m = t.number_or("d_bin_m", c.d_bin_m);
+  c.angle_bin_deg = t.number_or("angle_bin_deg", c.angle_bin_deg);
+  const std::string orientation = t.string_or("orientations", "walls_and_roofs");
+  if (orientation == "walls_and_roofs") {
+    c.orientation_mode = planes::OrientationMode::kWallsAndRoofs;
+  } else if (orientation == "any") {
+    c.orientation_mode = planes::OrientationMode::kAny;
+  } else {
+    t.fail("orientations", R"(must be "walls_and_roofs" or "any")");
+  }
+  c.orientation_tolerance_deg =
+      t.number_or("orientation_tolerance_deg", c.orientation_tolerance_deg);
+  const std::string voting = t.string_or("voting", "local_shape");
+  if (voting == "local_shape") {
+    c.voting_mode = planes::VotingMode::kLocalShape;
+  } else if (voting == "every_orientation") {
+    c.voting_mode = planes::VotingMode::kEveryOrientation;
+  } else {
+    t.fail("voting", R"(must be "local_shape" or "every_orientation")");
+  }
+  c.normal_kernel_deg = t.number_or("normal_kernel_deg", c.normal_kernel_deg);
+  c.min_points_for_shape =
+      static_cast<std::uint32_t>(capacity(t, "min_points_for_shape", c.min_points_for_shape));
+  c.max_planarity_ratio = t.number_or("max_planarity_ratio", c.max_planarity_ratio);
+  c.max_line_ratio = t.number_or("max_line_ratio", c.max_line_ratio);
+  c.min_votes = t.number_or("min_votes", c.min_votes);
+  c.max_planes_per_section = capacity(t, "max_planes_per_section", c.max_planes_per_section);
+  c.inlier_distance_m = t.number_or("inlier_distance_m", c.inlier_distance_m);
+  c.inlier_angle_deg = t.number_or("inlier_angle_deg", c.inlier_angle_deg);
+  c.refine_iterations =
+      static_cast<std::uint32_t>(capacity(t, "refine_iterations", c.refine_iterations));
+  c.merge_angle_deg = t.number_or("merge_angle_deg", c.merge_angle_deg);
+  c.merge_distance_m = t.number_or("merge_distance_m", c.merge_distance_m);
+  c.merge_gap_m = t.number_or("merge_gap_m", c.merge_gap_m);
+  c.merge_gap_fraction = t.number_or("merge_gap_fraction", c.merge_gap_fraction);
+  c.label_tolerance_deg = t.number_or("label_tolerance_deg", c.label_tolerance_deg);
+  c.min_wall_height_m = t.number_or("min_wall_height_m", c.min_wall_height_m);
+  c.min_wall_width_m = t.number_or("min_wall_width_m", c.min_wall_width_m);
+  c.ground_step_m = t.number_or("ground_step_m", c.ground_step_m);
+  c.min_roof_height_m = t.number_or("min_roof_height_m", c.min_roof_height_m);
+  c.min_reported_support = t.number_or("min_reported_support", c.min_reported_support);
+  c.max_samples = capacity(t, "max_samples", c.max_samples);
+  c.max_samples_per_section = capacity(t, "max_samples_per_section", c.max_samples_per_section);
+  c.max_patches = capacity(t, "max_patches", c.max_patches);
+  c.max_planes = capacity(t, "max_planes", c.max_planes);
+  t.finish();
+  const std::string problem = planes::validate(c);
+  if (!problem.empty()) {
+    throw ConfigError(std::string(source) + ": planes: " + problem);
+  }
+  return c;
+}
+
+planes::PlanesConfig load_planes_config(const std::filesystem::path& path) {
+  std::ifstream file(path);
+  if (!file) {
+    throw ConfigError(path.string() + ": cannot open");
+  }
+  std::ostringstream text;
+  text << file.rdbuf();
+  return parse_planes_config(text.str(), path.string());
+}
+
+}  // namespace blockmap::hal::config

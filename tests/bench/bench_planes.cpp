@@ -1,0 +1,71 @@
+// Plane detection's speed on one core: the first N points of the simulated usc_block run (the
+// truth cloud: every return along the true trajectory), from points to the plane list.
+//   build/release/tests/bench/bench_planes
+// `ns_per_point` is the whole detection (samples, shapes, sections, Hough, refinement,
+// merging) per input point; its growth with N shows whether the cost is linear.
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <vector>
+
+#include "blockmap/core/arena.hpp"
+#include "blockmap/hal/sim/robot.hpp"
+#include "blockmap/hal/sim/truth_cloud.hpp"
+#include "blockmap/hal/sim/world.hpp"
+#include "blockmap/planes/plane_detector.hpp"
+
+namespace blockmap::planes {
+namespace {
+
+const std::vector<Eigen::Vector3f>& city_cloud() {
+  static const std::vector<Eigen::Vector3f> points = [] {
+    hal::sim::SimOptions options;
+    options.seed = 3;
+    return hal::sim::simulate_truth_cloud(hal::sim::load_world("usc_block"),
+                                          hal::sim::load_robot("paper_rmp"), options)
+        .points_m;
+  }();
+  return points;
+}
+
+void BM_DetectPlanes(benchmark::State& state, VotingMode voting) {
+  const std::vector<Eigen::Vector3f>& all = city_cloud();
+  const auto count = std::min(all.size(), static_cast<std::size_t>(state.range(0)));
+  const std::span<const Eigen::Vector3f> points(all.data(), count);
+  PlanesConfig config;
+  config.voting_mode = voting;
+  Arena arena(PlaneDetector::arena_budget_bytes(config));
+  PlaneDetector detector;
+  detector.init(arena, config);
+  arena.seal();
+  std::size_t planes = 0;
+  for (auto _ : state) {
+    detector.clear();
+    detector.add_points(points);
+    planes = detector.detect().size();
+    benchmark::DoNotOptimize(planes);
+  }
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(count));
+  // An inverted rate of count * 1e-9 per iteration is nanoseconds per point.
+  state.counters["ns_per_point"] = benchmark::Counter(
+      static_cast<double>(count) * 1e-9,
+      benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+  state.counters["points"] = static_cast<double>(count);
+  state.counters["planes"] = static_cast<double>(planes);
+  state.counters["samples"] = static_cast<double>(detector.stats().samples);
+  state.counters["arena_MiB"] = static_cast<double>(arena.used_bytes()) / (1 << 20);
+}
+
+BENCHMARK_CAPTURE(BM_DetectPlanes, local_shape, VotingMode::kLocalShape)
+    ->Arg(250'000)
+    ->Arg(500'000)
+    ->Arg(1'000'000)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(BM_DetectPlanes, every_orientation, VotingMode::kEveryOrientation)
+    ->Arg(250'000)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+}  // namespace
+}  // namespace blockmap::planes

@@ -1,0 +1,328 @@
+// The pieces of plane detection, one at a time, on clouds whose planes are known exactly.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <numbers>
+#include <random>
+#include <vector>
+
+#include "blockmap/core/arena.hpp"
+#include "blockmap/planes/hough_accumulator.hpp"
+#include "blockmap/planes/orientation_grid.hpp"
+#include "blockmap/planes/plane_detector.hpp"
+#include "blockmap/planes/polygon.hpp"
+
+namespace blockmap::planes {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+Eigen::Vector3f direction(double theta_deg, double phi_deg) {
+  const double t = theta_deg * kDeg;
+  const double p = phi_deg * kDeg;
+  return Eigen::Vector3d(std::sin(t) * std::cos(p), std::sin(t) * std::sin(p), std::cos(t))
+      .cast<float>();
+}
+
+TEST(OrientationGrid, EveryCellNormalFallsInItsOwnCellAndCellsHaveAboutEqualArea) {
+  Arena arena(std::size_t{8} << 20);
+  OrientationGrid grid;
+  grid.init(arena, 2.0, OrientationMode::kAny, 5.0, 4.0);
+  ASSERT_EQ(grid.row_count(), grid.cell_count());
+  // Half the sphere (2 pi sr) over cells of about 2 x 2 degrees.
+  const double expected = 2.0 * std::numbers::pi / std::pow(2.0 * kDeg, 2.0);
+  EXPECT_NEAR(static_cast<double>(grid.cell_count()), expected, 0.05 * expected);
+  for (std::uint32_t row = 0; row < grid.row_count(); ++row) {
+    const Eigen::Vector3f& n = grid.row_normal(row);
+    EXPECT_EQ(grid.cell_of(n), static_cast<std::uint32_t>(grid.row_of_cell(grid.cell_of(n))));
+    EXPECT_EQ(static_cast<std::int32_t>(row), grid.row_of_cell(grid.cell_of(n)));
+    EXPECT_EQ(grid.cell_of(n), grid.cell_of(-n)) << "n and -n are the same plane";
+  }
+}
+
+TEST(OrientationGrid, WallsAndRoofsSearchesOnlyNearVerticalAndNearHorizontalPlanes) {
+  Arena arena(std::size_t{8} << 20);
+  OrientationGrid grid;
+  grid.init(arena, 2.0, OrientationMode::kWallsAndRoofs, 5.0, 4.0);
+  EXPECT_LT(grid.row_count(), grid.cell_count() / 5);
+  for (std::uint32_t row = 0; row < grid.row_count(); ++row) {
+    const auto z = static_cast<double>(std::abs(grid.row_normal(row).z()));
+    EXPECT_TRUE(z >= std::cos(5.01 * kDeg) || z <= std::sin(5.01 * kDeg)) << z;
+  }
+  EXPECT_GE(grid.row_of_cell(grid.cell_of(direction(90, 33))), 0);   // a wall
+  EXPECT_GE(grid.row_of_cell(grid.cell_of(direction(0, 0))), 0);     // a floor
+  EXPECT_EQ(grid.row_of_cell(grid.cell_of(direction(45, 10))), -1);  // a ramp
+}
+
+TEST(OrientationGrid, NeighboursAcrossTheEquatorAreFlipped) {
+  Arena arena(std::size_t{8} << 20);
+  OrientationGrid grid;
+  grid.init(arena, 2.0, OrientationMode::kAny, 5.0, 4.0);
+  // phi = 1 degree on the equator: its neighbour at phi = 179 is the same plane turned round.
+  const auto row = static_cast<std::uint32_t>(grid.row_of_cell(grid.cell_of(direction(90, 1))));
+  bool found_flipped = false;
+  for (const OrientationGrid::Neighbour& n : grid.neighbours(row)) {
+    if (n.flipped) {
+      found_flipped = true;
+      EXPECT_LT(grid.row_normal(n.row).dot(grid.row_normal(row)), -0.99f);
+    }
+  }
+  EXPECT_TRUE(found_flipped);
+}
+
+TEST(OrientationGrid, KernelsHoldTheRowsNearANormalAndTheRowsOfPlanesThroughALine) {
+  Arena arena(std::size_t{8} << 20);
+  OrientationGrid grid;
+  grid.init(arena, 2.0, OrientationMode::kAny, 5.0, 4.0);
+  const Eigen::Vector3f n = direction(60, 40);
+  const std::uint32_t cell = grid.cell_of(n);
+  const auto surface = grid.surface_kernel(cell);
+  EXPECT_GE(surface.size(), 9u);
+  for (const std::uint32_t row : surface) {
+    EXPECT_GT(std::abs(grid.row_normal(row).dot(
+                  grid.row_normal(static_cast<std::uint32_t>(grid.row_of_cell(cell))))),
+              std::cos(4.01 * kDeg));
+  }
+  const auto line = grid.line_kernel(cell);
+  EXPECT_GE(line.size(), 80u);  // half a great circle in 2 degree cells
+  for (const std::uint32_t row : line) {
+    EXPECT_LT(std::abs(grid.row_normal(row).dot(
+                  grid.row_normal(static_cast<std::uint32_t>(grid.row_of_cell(cell))))),
+              std::sin(3.0 * kDeg));
+  }
+}
+
+TEST(HoughAccumulator, APlanesPeakSitsAtItsCellAndRemovingItsVotesEmptiesTheGrid) {
+  Arena arena(std::size_t{16} << 20);
+  OrientationGrid grid;
+  grid.init(arena, 2.0, OrientationMode::kWallsAndRoofs, 5.0, 4.0);
+  HoughAccumulator accumulator;
+  accumulator.init(arena, grid, 1.5, 0.05, 4096);
+  // The wall x = 0.42 (relative to the section centre), sampled on a grid.
+  std::vector<Eigen::Vector3f> points;
+  for (int i = -5; i <= 5; ++i) {
+    for (int j = -5; j <= 5; ++j) {
+      points.emplace_back(0.42f, 0.1f * static_cast<float>(i), 0.1f * static_cast<float>(j));
+    }
+  }
+  const auto vote_all = [&](float weight) {
+    for (const Eigen::Vector3f& p : points) {
+      for (std::uint32_t row = 0; row < grid.row_count(); ++row) {
+        accumulator.vote(row, p, weight);
+      }
+    }
+  };
+  vote_all(1.0f);
+  std::array<HoughPeak, 4> peaks{};
+  const std::size_t count = accumulator.find_peaks(60.0f, peaks);
+  ASSERT_GE(count, 1u);
+  // Cells a few degrees off hold the whole 1 m patch within their three-bin window too; the
+  // peak is one of them, and least squares takes it from there.
+  EXPECT_GT(std::abs(peaks[0].normal.x()), std::cos(5.0 * kDeg));
+  EXPECT_NEAR(std::abs(peaks[0].d_m), 0.42, 0.05);
+  EXPECT_EQ(peaks[0].votes, static_cast<float>(points.size()));
+  vote_all(-1.0f);
+  EXPECT_EQ(accumulator.find_peaks(1.0f, peaks), 0u);
+  accumulator.clear();
+  for (std::uint32_t row = 0; row < grid.row_count(); ++row) {
+    for (std::uint32_t bin = 0; bin < accumulator.d_bins(); ++bin) {
+      ASSERT_EQ(accumulator.votes(row, bin), 0.0f);
+    }
+  }
+}
+
+// A room: floor, ceiling at 3 m, four walls; sampled every 5 cm with 1 cm noise, plus a bush.
+std::vector<Eigen::Vector3f> room_cloud(std::uint32_t seed, bool with_bush) {
+  std::mt19937 random(seed);
+  std::normal_distribution<float> noise(0.0f, 0.01f);
+  std::vector<Eigen::Vector3f> points;
+  const auto surface = [&](const Eigen::Vector3f& origin, const Eigen::Vector3f& u,
+                           const Eigen::Vector3f& v, float u_length, float v_length) {
+    const Eigen::Vector3f n = u.cross(v).normalized();
+    for (float a = 0.0f; a <= u_length; a += 0.05f) {
+      for (float b = 0.0f; b <= v_length; b += 0.05f) {
+        points.emplace_back(origin + a * u + b * v + noise(random) * n);
+      }
+    }
+  };
+  const Eigen::Vector3f x = Eigen::Vector3f::UnitX();
+  const Eigen::Vector3f y = Eigen::Vector3f::UnitY();
+  const Eigen::Vector3f z = Eigen::Vector3f::UnitZ();
+  surface({-4, -3, 0}, x, y, 8, 6);  // floor z = 0
+  surface({-4, -3, 3}, x, y, 8, 6);  // ceiling z = 3
+  surface({-4, -3, 0}, x, z, 8, 3);  // wall y = -3
+  surface({-4, 3, 0}, x, z, 8, 3);   // wall y = 3
+  surface({-4, -3, 0}, y, z, 6, 3);  // wall x = -4
+  surface({4, -3, 0}, y, z, 6, 3);   // wall x = 4
+  if (with_bush) {
+    std::uniform_real_distribution<float> in_ball(-0.6f, 0.6f);
+    for (int i = 0; i < 20000; ++i) {
+      const Eigen::Vector3f p(in_ball(random), in_ball(random), in_ball(random));
+      if (p.norm() < 0.6f) {
+        points.emplace_back(p + Eigen::Vector3f(1.0f, 0.5f, 0.8f));
+      }
+    }
+  }
+  return points;
+}
+
+struct DetectorFixture {
+  explicit DetectorFixture(PlanesConfig config = {})
+      : arena(PlaneDetector::arena_budget_bytes(config)) {
+    detector.init(arena, config);
+    arena.seal();
+  }
+  Arena arena;
+  PlaneDetector detector;
+};
+
+TEST(PlaneDetector, FindsEveryWallFloorAndCeilingOfARoomOnceAndLabelsThem) {
+  PlanesConfig config;
+  config.max_samples = 1 << 17;
+  DetectorFixture fixture(config);
+  const std::vector<Eigen::Vector3f> points = room_cloud(1, true);
+  fixture.detector.add_points(points);
+  const auto planes = fixture.detector.detect();
+  struct Expected {
+    Eigen::Vector3d normal;
+    double d;
+    msg::PlaneKind kind;
+  };
+  const std::vector<Expected> expected = {
+      {{0, 0, 1}, 0.0, msg::PlaneKind::kGround}, {{0, 0, 1}, 3.0, msg::PlaneKind::kRoof},
+      {{0, 1, 0}, -3.0, msg::PlaneKind::kWall},  {{0, 1, 0}, 3.0, msg::PlaneKind::kWall},
+      {{1, 0, 0}, -4.0, msg::PlaneKind::kWall},  {{1, 0, 0}, 4.0, msg::PlaneKind::kWall}};
+  std::size_t structural = 0;
+  for (const msg::PlanePatch& plane : planes) {
+    structural += plane.kind != msg::PlaneKind::kOther ? 1 : 0;
+  }
+  EXPECT_EQ(structural, expected.size()) << "the bush is no plane";
+  for (const Expected& e : expected) {
+    int matches = 0;
+    for (const msg::PlanePatch& plane : planes) {
+      const double sign = plane.normal.dot(e.normal) < 0 ? -1.0 : 1.0;
+      if (std::abs(plane.normal.dot(e.normal)) > std::cos(0.5 * kDeg) &&
+          std::abs(sign * plane.d_m - e.d) < 0.01) {
+        ++matches;
+        EXPECT_EQ(plane.kind, e.kind) << e.normal.transpose() << " d " << e.d;
+        EXPECT_LT(plane.rmse_m, 0.015);
+        EXPECT_GT(plane.support, 5000.0);
+        EXPECT_GE(plane.polygon_size, 4);
+      }
+    }
+    EXPECT_EQ(matches, 1) << e.normal.transpose() << " d " << e.d;
+  }
+}
+
+TEST(PlaneDetector, AnyOrientationFindsARampThePapersModeDoesNotSearch) {
+  std::vector<Eigen::Vector3f> points;
+  const Eigen::Vector3f n = direction(30, 20);
+  const Eigen::Vector3f u = n.cross(Eigen::Vector3f::UnitZ()).normalized();
+  const Eigen::Vector3f v = n.cross(u);
+  for (float a = -3.0f; a <= 3.0f; a += 0.05f) {
+    for (float b = -3.0f; b <= 3.0f; b += 0.05f) {
+      points.emplace_back(1.5f * n + a * u + b * v);
+    }
+  }
+  PlanesConfig config;
+  config.max_samples = 1 << 16;
+  DetectorFixture papers(config);
+  papers.detector.add_points(points);
+  EXPECT_TRUE(papers.detector.detect().empty());
+  config.orientation_mode = OrientationMode::kAny;
+  DetectorFixture any(config);
+  any.detector.add_points(points);
+  const auto planes = any.detector.detect();
+  ASSERT_EQ(planes.size(), 1u);
+  EXPECT_GT(std::abs(planes[0].normal.cast<float>().dot(n)), std::cos(0.1 * kDeg));
+  EXPECT_NEAR(std::abs(planes[0].d_m), 1.5, 0.005);
+  EXPECT_EQ(planes[0].kind, msg::PlaneKind::kOther);
+}
+
+TEST(PlaneDetector, ThePapersLiteralVotingFindsTheSamePlanes) {
+  PlanesConfig config;
+  config.max_samples = 1 << 17;
+  config.voting_mode = VotingMode::kEveryOrientation;
+  DetectorFixture fixture(config);
+  fixture.detector.add_points(room_cloud(2, false));
+  std::size_t structural = 0;
+  for (const msg::PlanePatch& plane : fixture.detector.detect()) {
+    structural += plane.kind != msg::PlaneKind::kOther ? 1 : 0;
+  }
+  EXPECT_EQ(structural, 6u);
+}
+
+TEST(PlaneDetector, TheSamePointsGiveTheSamePlanesBitForBit) {
+  PlanesConfig config;
+  config.max_samples = 1 << 17;
+  DetectorFixture a(config);
+  DetectorFixture b(config);
+  const std::vector<Eigen::Vector3f> points = room_cloud(3, true);
+  a.detector.add_points(points);
+  b.detector.add_points(points);
+  const auto first = a.detector.detect();
+  const auto second = b.detector.detect();
+  ASSERT_EQ(first.size(), second.size());
+  for (std::size_t i = 0; i < first.size(); ++i) {
+    EXPECT_EQ(first[i].normal, second[i].normal);
+    EXPECT_EQ(first[i].d_m, second[i].d_m);
+    EXPECT_EQ(first[i].support, second[i].support);
+    EXPECT_EQ(first[i].polygon_size, second[i].polygon_size);
+  }
+  // And again on the same detector after clear().
+  a.detector.clear();
+  a.detector.add_points(points);
+  const auto third = a.detector.detect();
+  ASSERT_EQ(third.size(), second.size());
+  for (std::size_t i = 0; i < third.size(); ++i) {
+    EXPECT_EQ(third[i].d_m, second[i].d_m);
+  }
+}
+
+TEST(PlaneDetector, NonFinitePointsAreDroppedAndCounted) {
+  PlanesConfig config;
+  config.max_samples = 1024;
+  DetectorFixture fixture(config);
+  fixture.detector.add_point({std::nanf(""), 0, 0});
+  fixture.detector.add_point({1, std::numeric_limits<float>::infinity(), 0});
+  fixture.detector.add_point({1, 2, 3});
+  fixture.detector.detect();
+  EXPECT_EQ(fixture.detector.stats().points, 1u);
+  EXPECT_EQ(fixture.detector.stats().points_dropped, 2u);
+}
+
+TEST(PlanesConfig, ValidateNamesWhatIsWrong) {
+  EXPECT_EQ(validate(PlanesConfig{}), "");
+  PlanesConfig c;
+  c.section_stride_m = 0.5;
+  EXPECT_NE(validate(c).find("section_stride_m"), std::string::npos);
+  c = PlanesConfig{};
+  c.angle_bin_deg = 0.0;
+  EXPECT_NE(validate(c).find("angle_bin_deg"), std::string::npos);
+  c = PlanesConfig{};
+  c.max_patches = 10;
+  EXPECT_NE(validate(c).find("max_patches"), std::string::npos);
+}
+
+TEST(Polygon, HullGapAndSimplification) {
+  std::vector<Eigen::Vector2d> square = {{0, 0}, {1, 0}, {1, 1}, {0, 1}, {0.5, 0.5}, {0.2, 0.7}};
+  std::vector<Eigen::Vector2d> hull(square.size() + 1);
+  const std::size_t size = convex_hull(square, hull);
+  ASSERT_EQ(size, 4u);
+  hull.resize(size);
+  EXPECT_NEAR(polygon_area(hull), 1.0, 1e-12);
+  std::vector<Eigen::Vector2d> other = {{3, 0}, {4, 0}, {4, 1}, {3, 1}};
+  EXPECT_NEAR(convex_polygon_gap(hull, other), 2.0, 1e-12);
+  std::vector<Eigen::Vector2d> overlapping = {{0.5, 0.5}, {2, 0.5}, {2, 2}, {0.5, 2}};
+  EXPECT_EQ(convex_polygon_gap(hull, overlapping), 0.0);
+  std::vector<Eigen::Vector2d> circle;
+  circle.reserve(64);
+  for (int i = 0; i < 64; ++i) {
+    circle.emplace_back(std::cos(i * std::numbers::pi / 32), std::sin(i * std::numbers::pi / 32));
+  }
+  EXPECT_EQ(simplify_polygon(circle, circle.size(), 16), 16u);
+}
+
+}  // namespace
+}  // namespace blockmap::planes

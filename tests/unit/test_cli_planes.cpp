@@ -1,0 +1,147 @@
+// `blockmap planes CLOUD`: the plane list of ARCHITECTURE.md 4.1 from a file, one-line errors
+// and a non-zero status for bad files and bad configurations.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cli.hpp"
+
+namespace blockmap::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Result {
+  int status;
+  std::string out;
+  std::string err;
+};
+
+Result run_cli(const std::vector<std::string>& args) {
+  std::vector<const char*> argv = {"blockmap"};
+  for (const std::string& arg : args) {
+    argv.push_back(arg.c_str());
+  }
+  std::ostringstream out;
+  std::ostringstream err;
+  const int status = run(static_cast<int>(argv.size()), argv.data(), out, err);
+  return {status, out.str(), err.str()};
+}
+
+class PlanesCommand : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    folder_ = fs::temp_directory_path() / ("blockmap_planes_" + std::to_string(::getpid()));
+    fs::create_directories(folder_);
+  }
+  void TearDown() override { fs::remove_all(folder_); }
+
+  // A floor (z = 0) and a wall (x = 3, 4 m high), as an ASCII PLY file.
+  fs::path write_scene() {
+    std::ostringstream body;
+    std::size_t count = 0;
+    for (double a = -3.0; a <= 3.0; a += 0.05) {
+      for (double b = -3.0; b <= 3.0; b += 0.05) {
+        body << a << ' ' << b << " 0\n";
+        ++count;
+      }
+      for (double z = 0.05; z <= 4.0; z += 0.05) {
+        body << "3 " << a << ' ' << z << '\n';
+        ++count;
+      }
+    }
+    fs::path path = folder_ / "scene.ply";
+    std::ofstream file(path);
+    file << "ply\nformat ascii 1.0\nelement vertex " << count
+         << "\nproperty float x\nproperty float y\nproperty float z\nend_header\n"
+         << body.str();
+    return path;
+  }
+
+  fs::path folder_;
+};
+
+TEST_F(PlanesCommand, PrintsThePlaneListContract) {
+  const Result result = run_cli({"planes", write_scene().string()});
+  ASSERT_EQ(result.status, 0) << result.err;
+  const nlohmann::json list = nlohmann::json::parse(result.out);
+  EXPECT_GT(list.at("points").get<int>(), 20000);
+  EXPECT_GE(list.at("seconds").get<double>(), 0.0);
+  ASSERT_EQ(list.at("planes").size(), 2u) << result.out;
+  bool ground = false;
+  bool wall = false;
+  for (const nlohmann::json& plane : list.at("planes")) {
+    const std::vector<double> n = plane.at("normal");
+    EXPECT_NEAR(std::hypot(n[0], n[1], n[2]), 1.0, 1e-5);
+    EXPECT_GE(plane.at("polygon").size(), 4u);
+    EXPECT_GT(plane.at("support").get<double>(), 5000.0);
+    EXPECT_LT(plane.at("rmse").get<double>(), 0.01);
+    EXPECT_EQ(plane.at("centroid").size(), 3u);
+    EXPECT_GE(plane.at("id").get<int>(), 1);
+    const std::string kind = plane.at("kind");
+    if (kind == "ground") {
+      ground = std::abs(n[2]) > 0.999 && std::abs(plane.at("d").get<double>()) < 0.01;
+    }
+    if (kind == "wall") {
+      wall = std::abs(n[0]) > 0.999 && std::abs(std::abs(plane.at("d").get<double>()) - 3.0) < 0.01;
+    }
+  }
+  EXPECT_TRUE(ground);
+  EXPECT_TRUE(wall);
+}
+
+TEST_F(PlanesCommand, WritesToOutAndReadsAConfig) {
+  const fs::path config = folder_ / "planes.toml";
+  std::ofstream(config) << "[planes]\nd_bin_m = 0.04\nmin_votes = 40\n";
+  const fs::path out = folder_ / "planes.json";
+  const Result result = run_cli(
+      {"planes", write_scene().string(), "--config", config.string(), "--out", out.string()});
+  ASSERT_EQ(result.status, 0) << result.err;
+  EXPECT_TRUE(result.out.empty());
+  std::ifstream file(out);
+  EXPECT_EQ(nlohmann::json::parse(file).at("planes").size(), 2u);
+}
+
+TEST_F(PlanesCommand, TheShippedConfigurationIsTheDefault) {
+  const Result shipped =
+      run_cli({"planes", write_scene().string(), "--config",
+               (fs::path(BLOCKMAP_PROJECT_DIR) / "config/planes.toml").string()});
+  const Result defaults = run_cli({"planes", write_scene().string()});
+  ASSERT_EQ(shipped.status, 0) << shipped.err;
+  nlohmann::json a = nlohmann::json::parse(shipped.out);
+  nlohmann::json b = nlohmann::json::parse(defaults.out);
+  EXPECT_EQ(a.at("planes"), b.at("planes"));
+}
+
+TEST_F(PlanesCommand, BadFilesAndConfigsAreOneLineAndANonZeroStatus) {
+  const fs::path truncated = folder_ / "cut.bin";
+  std::ofstream(truncated) << "0123456789";
+  const fs::path bad_key = folder_ / "bad.toml";
+  std::ofstream(bad_key) << "[planes]\nd_bin_ft = 0.1\n";
+  const fs::path bad_value = folder_ / "bad_value.toml";
+  std::ofstream(bad_value) << "[planes]\nsection_stride_m = 0.5\n";
+  const std::vector<std::vector<std::string>> cases = {
+      {"planes", truncated.string()},
+      {"planes", (folder_ / "missing.ply").string()},
+      {"planes", (folder_ / "cloud.las").string()},
+      {"planes", write_scene().string(), "--config", bad_key.string()},
+      {"planes", write_scene().string(), "--config", bad_value.string()},
+  };
+  for (const auto& args : cases) {
+    const Result result = run_cli(args);
+    EXPECT_NE(result.status, 0) << args[1];
+    EXPECT_TRUE(result.out.empty());
+    EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << result.err;
+    EXPECT_EQ(result.err.rfind("blockmap: ", 0), 0u) << result.err;
+  }
+}
+
+}  // namespace
+}  // namespace blockmap::cli
