@@ -92,6 +92,11 @@ int detect_planes(const PlanesOptions& options, std::ostream& out, std::ostream&
   err << ", " << stats.samples << " samples, " << stats.sections << " sections, "
       << stats.section_planes << " section planes -> " << planes.size() << " planes in "
       << seconds * 1e3 << " ms; " << (arena.used_bytes() >> 20) << " MiB\n";
+  if (stats.overflows > 0) {
+    err << "planes: warning: " << stats.overflows
+        << " sections, samples or planes beyond a capacity were left out (raise max_* in the "
+           "config)\n";
+  }
   if (stats.points_dropped > 0) {
     err << "planes: warning: " << stats.points_dropped
         << " points found no sample (raise max_samples)\n";

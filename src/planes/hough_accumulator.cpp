@@ -15,8 +15,9 @@ void HoughAccumulator::init(Arena& arena, const OrientationGrid& grid, double ha
   d_bins_ = 2 * half_bins;
   half_range_m_ = static_cast<float>(half_bins * d_bin_m);
   inverse_bin_m_ = static_cast<float>(1.0 / d_bin_m);
-  BLOCKMAP_CHECK_MSG(grid.row_count() * d_bins_ < (std::size_t{1} << 32),
-                     "Hough grid too large for 32-bit cell indices");
+  BLOCKMAP_CHECK_MSG(
+      static_cast<std::uint64_t>(grid.row_count()) * d_bins_ < (std::uint64_t{1} << 32),
+      "Hough grid too large for 32-bit cell indices");
   votes_ = arena.allocate_array<float>(grid.row_count() * d_bins_, "planes.hough_accumulator");
   touched_ = arena.allocate_array<std::uint32_t>(touched_capacity, "planes.hough_accumulator");
   touched_count_ = 0;

@@ -61,10 +61,15 @@ std::size_t PlaneDetector::arena_budget_bytes(const PlanesConfig& config) noexce
   const double half_range = 0.5 * std::sqrt(3.0) * config.section_size_m + config.d_bin_m;
   const double d_bins = 2.0 * std::ceil(half_range / config.d_bin_m);
   const auto samples = static_cast<double>(config.max_samples);
-  const double index_slots = 2.0 * static_cast<double>(std::bit_ceil(2 * config.max_samples));
-  const double voxels =
-      samples * sizeof(Voxel) + index_slots * (sizeof(CellKey) + sizeof(std::uint32_t));
-  const double sections = samples * (16.0 + 8.0 + sizeof(CellKey));  // order, ranges, section keys
+  // Two cell indexes (samples, blocks), each at most half full, 16-byte slots.
+  // The voxel table and the block index: each at most half full.
+  const auto table_slots =
+      static_cast<double>(std::bit_ceil(std::max<std::size_t>(2 * config.max_samples, 64)));
+  const double voxels = table_slots * (sizeof(Voxel) + 2 * 16.0) +
+                        samples * (sizeof(std::uint32_t) + sizeof(std::uint64_t));
+  const double per_axis = std::round(config.section_size_m / config.section_stride_m);
+  const double sections =
+      samples * (16.0 + 4.0 + 8.0 + per_axis * per_axis * per_axis * sizeof(CellKey));
   const double accumulator =
       cells * d_bins * sizeof(float) +
       static_cast<double>(config.max_samples_per_section) * 32 * sizeof(std::uint32_t);
@@ -88,9 +93,7 @@ void PlaneDetector::clear() noexcept {
 }
 
 void PlaneDetector::add_points(std::span<const Eigen::Vector3f> points_m) noexcept {
-  for (const Eigen::Vector3f& p : points_m) {
-    voxels_.add_point(p);
-  }
+  voxels_.add_points(points_m);
 }
 
 std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
@@ -99,17 +102,20 @@ std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
   stats_.points = counters.points_added;
   stats_.points_dropped = counters.points_dropped_full + counters.points_dropped_range +
                           counters.points_dropped_nonfinite;
-  voxels_.estimate_shapes(config_.min_points_for_shape, config_.max_planarity_ratio,
-                          config_.max_line_ratio);
-  for (Voxel& voxel : voxels_.voxels()) {
+  sections_.build(voxels_);
+  voxels_.estimate_shapes(sections_.voxel_order(), config_.min_points_for_shape,
+                          config_.max_planarity_ratio, config_.max_line_ratio);
+  const std::span<Voxel> slots = voxels_.slots();
+  for (const std::uint32_t id : voxels_.occupied()) {
+    Voxel& voxel = slots[id];
     voxel.owner = -1;
     voxel.axis_cell = orientations_.cell_of(voxel.axis);
+    voxel.centroid_m = voxels_.centroid_m(voxel);
     stats_.planar_samples += voxel.shape == LocalShape::kPlanar ? 1 : 0;
     stats_.linear_samples += voxel.shape == LocalShape::kLinear ? 1 : 0;
     stats_.scattered_samples += voxel.shape == LocalShape::kScattered ? 1 : 0;
   }
-  stats_.samples = voxels_.voxels().size();
-  sections_.build(voxels_);
+  stats_.samples = voxels_.size();
   merger_.clear();
   for (const CellKey section : sections_.sections()) {
     detect_in_section(section);
@@ -118,6 +124,9 @@ std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
   stats_.section_planes = merger_.section_plane_count();
   const std::span<const msg::PlanePatch> planes = merger_.merge(sections_);
   stats_.planes = planes.size();
+  stats_.overflows =
+      sections_.counters().sections_dropped_full + sections_.counters().voxels_dropped_full +
+      merger_.counters().section_planes_dropped_full + merger_.counters().planes_dropped_full;
   return planes;
 }
 
@@ -152,20 +161,30 @@ void PlaneDetector::vote_sample(const Voxel& voxel, const Eigen::Vector3f& posit
 
 void PlaneDetector::detect_in_section(CellKey section) noexcept {
   const std::size_t count = sections_.gather(section, section_samples_);
-  const Eigen::Vector3f centre = sections_.centre_m(section);
-  const std::span<Voxel> voxels = voxels_.voxels();
-  accumulator_.clear();
-  bool any_free = false;
+  const std::span<Voxel> voxels = voxels_.slots();
+  // Samples that an earlier, overlapping section gave to a plane neither vote nor count: if
+  // too few points are left for a plane, the section is done before it starts.
+  double free_weight = 0.0;
   for (std::size_t i = 0; i < count; ++i) {
     const Voxel& voxel = voxels[section_samples_[i]];
-    section_positions_[i] = voxels_.centroid_m(voxel) - centre;
-    any_free = any_free || voxel.owner < 0;
-    if (voxel.point_count > 0) {
-      vote_sample(voxel, section_positions_[i]);
+    if (voxel.owner < 0 &&
+        (voxel.shape == LocalShape::kPlanar || voxel.shape == LocalShape::kLinear ||
+         config_.voting_mode == VotingMode::kEveryOrientation)) {
+      free_weight += voxel.point_count;
     }
   }
-  if (!any_free) {
-    return;  // every sample already belongs to a plane of an earlier section
+  if (free_weight < config_.min_votes) {
+    return;
+  }
+  ++stats_.sections_searched;
+  const Eigen::Vector3f centre = sections_.centre_m(section);
+  accumulator_.clear();
+  for (std::size_t i = 0; i < count; ++i) {
+    const Voxel& voxel = voxels[section_samples_[i]];
+    section_positions_[i] = voxel.centroid_m - centre;
+    if (voxel.owner < 0 && voxel.point_count > 0) {
+      vote_sample(voxel, section_positions_[i]);
+    }
   }
   const std::size_t peaks = accumulator_.find_peaks(static_cast<float>(config_.min_votes), peaks_);
   stats_.peaks += peaks;
@@ -180,7 +199,7 @@ void PlaneDetector::detect_in_section(CellKey section) noexcept {
 
 bool PlaneDetector::refine(const HoughPeak& peak, const Eigen::Vector3f& section_centre_m,
                            std::size_t sample_count, SectionPlane& out) noexcept {
-  const std::span<Voxel> voxels = voxels_.voxels();
+  const std::span<Voxel> voxels = voxels_.slots();
   const Eigen::Vector3d centre = section_centre_m.cast<double>();
   Eigen::Vector3d normal = peak.normal.cast<double>();
   auto d_m = static_cast<double>(peak.d_m);  // relative to the section centre

@@ -259,9 +259,9 @@ void PlaneMerger::label_and_emit() noexcept {
       largest_horizontal = std::max(largest_horizontal, c.moments.weight);
     }
   }
-  const Candidate* ground = nullptr;
+  Candidate* ground = nullptr;
   for (const std::uint32_t i : order) {
-    const Candidate& c = candidates_[i];
+    Candidate& c = candidates_[i];
     if (c.alive && std::abs(c.fit.normal_unit.z()) >= cos_horizontal &&
         c.moments.weight >= 0.25 * largest_horizontal &&
         (ground == nullptr || c.fit.centroid_m.z() < ground->fit.centroid_m.z())) {
@@ -273,6 +273,18 @@ void PlaneMerger::label_and_emit() noexcept {
     const double ground_z = (ground->fit.d_m - n.x() * p.x() - n.y() * p.y()) / n.z();
     return p.z() - ground_z;
   };
+  // The ground is one surface under everything: far pieces of it, cut off from the rest by
+  // buildings or by the reach of the lasers, are merged into it however far away they lie.
+  if (ground != nullptr) {
+    for (const std::uint32_t i : order) {
+      Candidate& c = candidates_[i];
+      if (c.alive && &c != ground && std::abs(c.fit.normal_unit.z()) >= cos_horizontal &&
+          std::abs(height_above_ground(c.fit.centroid_m)) <= config_.ground_step_m) {
+        absorb(*ground, c);
+        c.alive = false;
+      }
+    }
+  }
   output_count_ = 0;
   for (const std::uint32_t i : order) {
     const Candidate& c = candidates_[i];

@@ -21,8 +21,12 @@ void SectionGrid::init(Arena& arena, std::size_t max_voxels, std::uint32_t voxel
   blocks_per_section_ = blocks_per_section;
   block_size_m_ = voxels_per_block * voxel_size_m;
   order_ = arena.allocate_array<BlockVoxel>(max_voxels, "planes.section_grid");
+  voxel_order_ = arena.allocate_array<std::uint32_t>(max_voxels, "planes.section_grid");
   block_range_ = arena.allocate_array<Range>(max_voxels, "planes.section_grid");
-  sections_ = arena.allocate_array<CellKey>(max_voxels, "planes.section_grid");
+  // Every block starts k^3 candidate sections before duplicates go.
+  sections_ = arena.allocate_array<CellKey>(
+      max_voxels * blocks_per_section * blocks_per_section * blocks_per_section,
+      "planes.section_grid");
   block_index_.init(arena, max_voxels, "planes.section_grid");
 }
 
@@ -34,15 +38,20 @@ CellKey SectionGrid::block_of(CellKey voxel) const noexcept {
 
 void SectionGrid::build(const VoxelGrid& grid) noexcept {
   counters_ = Counters{};
-  const std::span<const Voxel> voxels = grid.voxels();
-  const std::size_t n = std::min(voxels.size(), order_.size());
+  const std::span<const Voxel> slots = grid.slots();
+  const std::span<const std::uint32_t> ids = grid.occupied();
+  const std::size_t n = std::min(ids.size(), order_.size());
   for (std::size_t i = 0; i < n; ++i) {
-    order_[i] = BlockVoxel{block_of(voxels[i].key), static_cast<std::uint32_t>(i)};
+    order_[i] = BlockVoxel{block_of(slots[ids[i]].key), ids[i]};
   }
   std::sort(order_.begin(), order_.begin() + static_cast<std::ptrdiff_t>(n),
             [](const BlockVoxel& a, const BlockVoxel& b) {
               return a.block != b.block ? a.block < b.block : a.voxel < b.voxel;
             });
+  for (std::size_t i = 0; i < n; ++i) {
+    voxel_order_[i] = order_[i].voxel;
+  }
+  voxel_count_ = n;
   // One range per occupied block.
   block_index_.clear();
   std::size_t blocks = 0;

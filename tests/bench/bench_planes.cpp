@@ -34,6 +34,7 @@ void BM_DetectPlanes(benchmark::State& state, VotingMode voting) {
   const std::span<const Eigen::Vector3f> points(all.data(), count);
   PlanesConfig config;
   config.voting_mode = voting;
+  config.max_samples = 1 << 18;  // room for 1 M points of a city (142,000 samples)
   Arena arena(PlaneDetector::arena_budget_bytes(config));
   PlaneDetector detector;
   detector.init(arena, config);

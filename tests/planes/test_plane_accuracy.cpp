@@ -2,6 +2,7 @@
 // true trajectory, scored against the world's truth faces.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <numbers>
 #include <string>
@@ -20,8 +21,10 @@ namespace {
 // checks, fewer faces.
 #if defined(BLOCKMAP_QUICK_WORLDS)
 constexpr double kDurationS = 60.0;
+constexpr std::size_t kMaxSamples = std::size_t{1} << 18;
 #else
-constexpr double kDurationS = 0.0;  // the whole path
+constexpr double kDurationS = 0.0;                         // the whole path
+constexpr std::size_t kMaxSamples = std::size_t{1} << 20;  // partial: 580,000 samples
 #endif
 
 struct WorldRun {
@@ -29,8 +32,14 @@ struct WorldRun {
   std::size_t planes = 0;
 };
 
+PlanesConfig city_config() {
+  PlanesConfig config;
+  config.max_samples = kMaxSamples;
+  return config;
+}
+
 WorldRun detect_in_world(const std::string& world, hal::sim::PoseNoise noise = {},
-                         const PlanesConfig& config = {}) {
+                         const PlanesConfig& config = city_config()) {
   hal::sim::SimOptions options;
   options.seed = 3;
   options.max_duration_s = kDurationS;
@@ -42,6 +51,8 @@ WorldRun detect_in_world(const std::string& world, hal::sim::PoseNoise noise = {
   arena.seal();
   detector.add_points(cloud.points_m);
   const auto planes = detector.detect();
+  EXPECT_EQ(detector.stats().overflows, 0u);
+  EXPECT_EQ(detector.stats().points_dropped, 0u);
   WorldRun run{testing::score_planes(cloud.faces, planes), planes.size()};
   const testing::PlaneScore& s = run.score;
   std::printf(
@@ -50,12 +61,24 @@ WorldRun detect_in_world(const std::string& world, hal::sim::PoseNoise noise = {
       world.c_str(), cloud.points_m.size(), planes.size(), s.faces_found, s.faces_considered,
       s.structural_real, s.structural_planes, s.faces_reported_twice, s.median_angle_deg,
       s.median_offset_m);
+  for (const msg::PlanePatch& plane : planes) {
+    const bool is_false =
+        std::find(s.false_planes.begin(), s.false_planes.end(), plane.id) != s.false_planes.end();
+    if (is_false || testing::structural(plane.kind)) {
+      std::printf(
+          "  %s plane %u %s n (%.3f %.3f %.3f) d %.2f support %.0f rmse %.3f centroid (%.1f %.1f "
+          "%.1f)\n",
+          is_false ? "FALSE" : "ok", plane.id, std::string(msg::to_string(plane.kind)).c_str(),
+          plane.normal.x(), plane.normal.y(), plane.normal.z(), plane.d_m, plane.support,
+          plane.rmse_m, plane.centroid_m.x(), plane.centroid_m.y(), plane.centroid_m.z());
+    }
+  }
   return run;
 }
 
 void expect_issue_accuracy(const WorldRun& run) {
   const testing::PlaneScore& s = run.score;
-  EXPECT_GE(s.faces_considered, 4u);
+  EXPECT_GE(s.faces_considered, 3u);  // usc_block after one minute: two walls and the ground
   EXPECT_GE(s.recall(), 0.95);
   EXPECT_GE(s.precision(), 0.95);
   EXPECT_LE(s.median_angle_deg, 0.5);

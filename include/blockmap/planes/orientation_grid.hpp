@@ -172,14 +172,14 @@ template <typename Visit>
 void OrientationGrid::visit_rows_perpendicular_to(const Eigen::Vector3f& direction,
                                                   Visit&& visit) const {
   // Normals perpendicular to the line: n(a) = cos(a) u + sin(a) v for a in [0, pi), sampled
-  // at a quarter of a cell so that no cell on the circle is stepped over.
+  // at a third of a cell: the circle can only skip a cell it grazes at a corner.
   const Eigen::Vector3f line = direction.normalized();
   const Eigen::Vector3f helper =
       std::abs(line.z()) < 0.9f ? Eigen::Vector3f::UnitZ() : Eigen::Vector3f::UnitX();
   const Eigen::Vector3f u = line.cross(helper).normalized();
   const Eigen::Vector3f v = line.cross(u);
   constexpr float kPi = 3.14159265358979323846f;
-  const auto steps = static_cast<std::uint32_t>(std::ceil(4.0f * kPi / band_step_rad_));
+  const auto steps = static_cast<std::uint32_t>(std::ceil(3.0f * kPi / band_step_rad_));
   // The circle stays in a cell for several steps and may graze a corner and come back: a
   // cell is skipped when it is one of the last few visited (or the first, where it ends).
   constexpr std::size_t kRecent = 4;

@@ -27,11 +27,13 @@ namespace blockmap::planes {
 struct DetectionStats {
   std::uint64_t points = 0;          // accepted into samples
   std::uint64_t points_dropped = 0;  // non-finite, out of range or no room (see counters)
+  std::uint64_t overflows = 0;       // sections, section samples or planes beyond a capacity
   std::uint64_t samples = 0;
   std::uint64_t planar_samples = 0;
   std::uint64_t linear_samples = 0;
   std::uint64_t scattered_samples = 0;
   std::uint64_t sections = 0;
+  std::uint64_t sections_searched = 0;  // with enough free points to hold a plane
   std::uint64_t votes = 0;
   std::uint64_t peaks = 0;
   std::uint64_t section_planes = 0;

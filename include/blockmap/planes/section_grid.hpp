@@ -27,6 +27,10 @@ class SectionGrid {
   // Indexes the voxels by block and lists every section that holds any, in key order.
   void build(const VoxelGrid& grid) noexcept;
 
+  // Every voxel index once, grouped by block (neighbours close together).
+  [[nodiscard]] std::span<const std::uint32_t> voxel_order() const noexcept {
+    return voxel_order_.first(voxel_count_);
+  }
   [[nodiscard]] std::span<const CellKey> sections() const noexcept {
     return sections_.first(section_count_);
   }
@@ -40,8 +44,8 @@ class SectionGrid {
                                              std::span<CellKey, 13> out) const noexcept;
   [[nodiscard]] const Counters& counters() const noexcept { return counters_; }
   [[nodiscard]] std::size_t memory_bytes() const noexcept {
-    return order_.size_bytes() + block_range_.size_bytes() + sections_.size_bytes() +
-           block_index_.memory_bytes();
+    return order_.size_bytes() + voxel_order_.size_bytes() + block_range_.size_bytes() +
+           sections_.size_bytes() + block_index_.memory_bytes();
   }
 
  private:
@@ -60,6 +64,8 @@ class SectionGrid {
   std::uint32_t blocks_per_section_ = 2;
   double block_size_m_ = 0.0;
   std::span<BlockVoxel> order_;
+  std::span<std::uint32_t> voxel_order_;
+  std::size_t voxel_count_ = 0;
   std::span<Range> block_range_;
   std::span<CellKey> sections_;
   std::size_t section_count_ = 0;
