@@ -1,4 +1,5 @@
 #include "cli.hpp"
+#include "cli_runner.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -16,19 +17,8 @@
 namespace blockmap::cli {
 namespace {
 
-struct Result {
-  int status;
-  std::string out;
-  std::string err;
-};
-
-Result run_cli(std::vector<const char*> args) {
-  args.insert(args.begin(), "blockmap");
-  std::ostringstream out;
-  std::ostringstream err;
-  const int status = run(static_cast<int>(args.size()), args.data(), out, err);
-  return {status, out.str(), err.str()};
-}
+using Result = testing::CliResult;
+using testing::run_cli;
 
 std::size_t count_lines(const std::string& text) {
   std::size_t lines = 0;
@@ -83,7 +73,7 @@ TEST(Cli, InfoDescribesTheBuild) {
 
 TEST(Cli, DecodeNmeaWritesOneObjectPerPositionSentence) {
   const std::string log = blockmap::testing::project_data("nmea/gpsd_mtk-3329.log").string();
-  const Result result = run_cli({"decode", "nmea", log.c_str()});
+  const Result result = run_cli({"decode", "nmea", log});
   EXPECT_EQ(result.status, kExitOk);
   EXPECT_EQ(result.out.rfind("{\"sentence\":\"RMC\",\"talker\":\"GP\",\"time\":\"10:21:27.000\","
                              "\"date\":\"2011-02-21\",\"lat\":51.484371667,\"lon\":6.538185,",
@@ -96,7 +86,7 @@ TEST(Cli, DecodeNmeaWritesOneObjectPerPositionSentence) {
 
 TEST(Cli, DecodeReportsBadSentencesInLineAndGoesOn) {
   const std::string log = blockmap::testing::project_data("nmea/gpsd_garmin48.log").string();
-  const Result result = run_cli({"decode", "nmea", log.c_str()});
+  const Result result = run_cli({"decode", "nmea", log});
   EXPECT_EQ(result.status, kExitOk);
   EXPECT_NE(result.out.find("{\"error\":\"bad_checksum\",\"line\":84}"), std::string::npos);
   EXPECT_GT(result.out.find("{\"error\""), result.out.find("\"sentence\""));
@@ -106,7 +96,7 @@ TEST(Cli, DecodeReportsBadSentencesInLineAndGoesOn) {
 TEST(Cli, DecodeRmpReadsCandumpAndOrcaLines) {
   const std::string log =
       blockmap::testing::project_data("segway_rmp/libsegwayrmp_unit_test_frames.txt").string();
-  const Result result = run_cli({"decode", "rmp", log.c_str()});
+  const Result result = run_cli({"decode", "rmp", log});
   EXPECT_EQ(result.status, kExitOk);
   EXPECT_EQ(count_lines(result.out), 6u);
   EXPECT_NE(result.out.find("\"id\":\"0x406\",\"operational_mode\":1,\"gain_schedule\":0,"
@@ -118,7 +108,7 @@ TEST(Cli, DecodeRmpReadsCandumpAndOrcaLines) {
 TEST(Cli, DecodeColaWritesEveryRealScan) {
   const std::string capture =
       blockmap::testing::project_data("cola/sick_scan_xd_test_pcapng_all16_frames.bin").string();
-  const Result result = run_cli({"decode", "cola", capture.c_str()});
+  const Result result = run_cli({"decode", "cola", capture});
   EXPECT_EQ(result.status, kExitOk);
   EXPECT_EQ(count_lines(result.out), 16u);
   EXPECT_NE(result.out.find("\"beams\":811,\"start_deg\":-135.0"), std::string::npos);
@@ -136,7 +126,7 @@ TEST(Cli, DecodeLms2xxAndScip2ReadTheirOwnEncodings) {
   const std::string lms_path = (dir / ("blockmap_cli_test_" + unique + ".lms")).string();
   std::ofstream(lms_path, std::ios::binary)
       .write(reinterpret_cast<const char*>(telegram.data()), static_cast<std::streamsize>(n));
-  const Result lms = run_cli({"decode", "lms2xx", lms_path.c_str()});
+  const Result lms = run_cli({"decode", "lms2xx", lms_path});
   EXPECT_EQ(lms.status, kExitOk);
   EXPECT_NE(lms.out.find("\"count\":181,\"units\":\"cm\""), std::string::npos)
       << lms.out.substr(0, 300);
@@ -148,7 +138,7 @@ TEST(Cli, DecodeLms2xxAndScip2ReadTheirOwnEncodings) {
       hal::protocol::hokuyo_scip2::encode_scan_reply(reply, "GD0044005401", "00", 77, ranges);
   const std::string scip_path = (dir / ("blockmap_cli_test_" + unique + ".scip")).string();
   std::ofstream(scip_path, std::ios::binary).write(reply.data(), static_cast<std::streamsize>(m));
-  const Result scip = run_cli({"decode", "scip2", scip_path.c_str()});
+  const Result scip = run_cli({"decode", "scip2", scip_path});
   EXPECT_EQ(scip.status, kExitOk);
   EXPECT_NE(
       scip.out.find(

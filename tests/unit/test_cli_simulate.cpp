@@ -13,28 +13,15 @@
 
 #include "blockmap/hal/geodesy.hpp"
 #include "cli.hpp"
+#include "cli_runner.hpp"
 
 namespace blockmap::cli {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct Result {
-  int status;
-  std::string out;
-  std::string err;
-};
-
-Result run_cli(const std::vector<std::string>& args) {
-  std::vector<const char*> argv = {"blockmap"};
-  for (const std::string& arg : args) {
-    argv.push_back(arg.c_str());
-  }
-  std::ostringstream out;
-  std::ostringstream err;
-  const int status = run(static_cast<int>(argv.size()), argv.data(), out, err);
-  return {status, out.str(), err.str()};
-}
+using Result = testing::CliResult;
+using testing::run_cli;
 
 std::string read_file(const fs::path& path) {
   std::ifstream file(path, std::ios::binary);
