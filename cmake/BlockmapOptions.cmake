@@ -2,12 +2,24 @@
 # host tree with tests.
 option(BLOCKMAP_BUILD_TESTS "Build the test tiers (unit, memory, build rules)" ON)
 option(BLOCKMAP_BUILD_BENCHMARKS "Build Google Benchmark programs (host only)" OFF)
+option(BLOCKMAP_BUILD_PEER_BENCHMARKS
+       "Build the peer benchmark (PCL, CGAL, Open3D; scripts/bench-peers installs them)" OFF)
 option(BLOCKMAP_SANITIZE "Build with AddressSanitizer and UndefinedBehaviorSanitizer" OFF)
 option(BLOCKMAP_BUILD_FUZZERS "Build libFuzzer targets for the protocol codecs (clang only)" OFF)
 option(BLOCKMAP_USE_CCACHE "Use ccache as the compiler launcher when it is installed" ON)
 set(BLOCKMAP_HOST_LABEL "host" CACHE STRING "ctest label of tests built for the host")
 set(BLOCKMAP_TARGET_LABEL "${CMAKE_SYSTEM_PROCESSOR}" CACHE STRING
     "ctest label of tests built for a cross target (set by the toolchain file)")
+
+# x86-64 hosts: the x86-64-v2 level (SSE4.2 and POPCNT, every x86-64 CPU since about 2009):
+# the voxel grid counts bits and floors coordinates on every point, which without it are
+# library calls. Empty for a plain x86-64 build; ARM targets set their own flags.
+set(BLOCKMAP_X86_64_LEVEL "x86-64-v2" CACHE STRING
+    "-march level of x86-64 builds (x86-64, x86-64-v2, x86-64-v3; empty: compiler default)")
+if(CMAKE_SYSTEM_PROCESSOR MATCHES "^(x86_64|AMD64)$" AND NOT CMAKE_CROSSCOMPILING
+   AND BLOCKMAP_X86_64_LEVEL)
+  add_compile_options(-march=${BLOCKMAP_X86_64_LEVEL})
+endif()
 
 if(BLOCKMAP_USE_CCACHE)
   find_program(BLOCKMAP_CCACHE ccache)

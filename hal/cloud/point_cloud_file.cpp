@@ -839,4 +839,42 @@ PointCloud read_point_cloud(const std::filesystem::path& path) {
   }
 }
 
+void write_ply(const std::filesystem::path& path, std::span<const Eigen::Vector3f> points_m,
+               const Eigen::Vector3d& origin_m) {
+  std::ofstream file(path, std::ios::binary | std::ios::trunc);
+  if (!file) {
+    throw CloudFileError(path.string() + ": cannot create: " +
+                         std::error_code(errno, std::generic_category()).message());
+  }
+  // Coordinates beyond float's millimetres go in as doubles with the origin added back.
+  const bool doubles = origin_m != Eigen::Vector3d::Zero();
+  const char* type = doubles ? "double" : "float";
+  file << "ply\nformat binary_little_endian 1.0\ncomment written by blockmap\nelement vertex "
+       << points_m.size() << "\nproperty " << type << " x\nproperty " << type << " y\nproperty "
+       << type << " z\nend_header\n";
+  std::vector<std::uint8_t> record(doubles ? 24 : 12);
+  const auto put = [&](std::size_t at, auto value) {
+    auto raw = std::bit_cast<std::array<std::uint8_t, sizeof(value)>>(value);
+    if (std::endian::native == std::endian::big) {
+      std::reverse(raw.begin(), raw.end());
+    }
+    std::memcpy(record.data() + at, raw.data(), raw.size());
+  };
+  for (const Eigen::Vector3f& p : points_m) {
+    for (Eigen::Index axis = 0; axis < 3; ++axis) {
+      if (doubles) {
+        put(static_cast<std::size_t>(axis) * 8, static_cast<double>(p[axis]) + origin_m[axis]);
+      } else {
+        put(static_cast<std::size_t>(axis) * 4, p[axis]);
+      }
+    }
+    file.write(reinterpret_cast<const char*>(record.data()),
+               static_cast<std::streamsize>(record.size()));
+  }
+  file.flush();
+  if (!file) {
+    throw CloudFileError(path.string() + ": write error");
+  }
+}
+
 }  // namespace blockmap::hal::cloud

@@ -1,6 +1,7 @@
 #include "blockmap/planes/plane_detector.hpp"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <limits>
@@ -27,15 +28,17 @@ void PlaneDetector::init(Arena& arena, const PlanesConfig& config) {
   orientations_.init(arena, config.angle_bin_deg, config.orientation_mode,
                      config.orientation_tolerance_deg, config.normal_kernel_deg);
   voxels_.init(arena, config.sample_size_m, config.max_samples);
+  // A block per sample at most.
   sections_.init(arena, config.max_samples,
-                 whole_ratio(config.section_stride_m, config.sample_size_m),
-                 whole_ratio(config.section_size_m, config.section_stride_m), config.sample_size_m);
+                 whole_ratio(config.section_size_m, config.section_stride_m),
+                 config.section_stride_m);
   // d relative to the section centre reaches half the section's diagonal.
   const double half_range_m = 0.5 * std::sqrt(3.0) * config.section_size_m + config.d_bin_m;
   // Votes of a section: each sample votes for at most the kernel's rows, or all rows.
   accumulator_.init(arena, orientations_, half_range_m, config.d_bin_m,
                     config.max_samples_per_section * 32);
   merger_.init(arena, config);
+  block_free_points_ = arena.allocate_array<std::uint32_t>(config.max_samples, "planes.detector");
   section_samples_ =
       arena.allocate_array<std::uint32_t>(config.max_samples_per_section, "planes.detector");
   section_positions_ =
@@ -61,15 +64,9 @@ std::size_t PlaneDetector::arena_budget_bytes(const PlanesConfig& config) noexce
   const double half_range = 0.5 * std::sqrt(3.0) * config.section_size_m + config.d_bin_m;
   const double d_bins = 2.0 * std::ceil(half_range / config.d_bin_m);
   const auto samples = static_cast<double>(config.max_samples);
-  // Two cell indexes (samples, blocks), each at most half full, 16-byte slots.
-  // The voxel table and the block index: each at most half full.
-  const auto table_slots =
-      static_cast<double>(std::bit_ceil(std::max<std::size_t>(2 * config.max_samples, 64)));
-  const double voxels = table_slots * (sizeof(Voxel) + 2 * 16.0) +
-                        samples * (sizeof(std::uint32_t) + sizeof(std::uint64_t));
-  const double per_axis = std::round(config.section_size_m / config.section_stride_m);
-  const double sections =
-      samples * (16.0 + 4.0 + 8.0 + per_axis * per_axis * per_axis * sizeof(CellKey));
+  const auto voxels = static_cast<double>(VoxelGrid::arena_bytes(config.max_samples));
+  const auto sections = static_cast<double>(SectionGrid::arena_bytes(
+      config.max_samples, whole_ratio(config.section_size_m, config.section_stride_m)));
   const double accumulator =
       cells * d_bins * sizeof(float) +
       static_cast<double>(config.max_samples_per_section) * 32 * sizeof(std::uint32_t);
@@ -78,7 +75,8 @@ std::size_t PlaneDetector::arena_budget_bytes(const PlanesConfig& config) noexce
   const double merger = patches * (sizeof(SectionPlane) + 2 * sizeof(std::uint32_t) +
                                    4 * (sizeof(Eigen::Vector3d) + 2 * sizeof(Eigen::Vector2d))) +
                         planes * (sizeof(msg::PlanePatch) + 1100.0) + 4096.0;
-  const double section = static_cast<double>(config.max_samples_per_section) *
+  const double section = samples * sizeof(std::uint32_t) +
+                         static_cast<double>(config.max_samples_per_section) *
                              (2 * sizeof(std::uint32_t) + sizeof(Eigen::Vector3f)) +
                          static_cast<double>(config.max_planes_per_section) * sizeof(HoughPeak);
   // Alignment padding: a few dozen allocations of at most 64 bytes each.
@@ -102,14 +100,17 @@ std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
   stats_.points = counters.points_added;
   stats_.points_dropped = counters.points_dropped_full + counters.points_dropped_range +
                           counters.points_dropped_nonfinite;
+  voxels_.compact();
   sections_.build(voxels_);
-  voxels_.estimate_shapes(sections_.voxel_order(), config_.min_points_for_shape,
-                          config_.max_planarity_ratio, config_.max_line_ratio);
-  const std::span<Voxel> slots = voxels_.slots();
-  for (const std::uint32_t id : voxels_.occupied()) {
-    Voxel& voxel = slots[id];
+  voxels_.estimate_shapes(config_.min_points_for_shape, config_.max_planarity_ratio,
+                          config_.max_line_ratio);
+  std::fill_n(block_free_points_.begin(), voxels_.block_count(), 0U);
+  for (Voxel& voxel : voxels_.voxels()) {
     voxel.owner = -1;
-    voxel.axis_cell = orientations_.cell_of(voxel.axis);
+    block_free_points_[voxel.block] += votes(voxel) ? voxel.point_count : 0;
+    if (voxel.shape == LocalShape::kPlanar || voxel.shape == LocalShape::kLinear) {
+      voxel.axis_cell = orientations_.cell_of(voxel.axis);
+    }
     voxel.centroid_m = voxels_.centroid_m(voxel);
     stats_.planar_samples += voxel.shape == LocalShape::kPlanar ? 1 : 0;
     stats_.linear_samples += voxel.shape == LocalShape::kLinear ? 1 : 0;
@@ -128,6 +129,11 @@ std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
       sections_.counters().sections_dropped_full + sections_.counters().voxels_dropped_full +
       merger_.counters().section_planes_dropped_full + merger_.counters().planes_dropped_full;
   return planes;
+}
+
+bool PlaneDetector::votes(const Voxel& voxel) const noexcept {
+  return config_.voting_mode == VotingMode::kEveryOrientation ||
+         voxel.shape == LocalShape::kPlanar || voxel.shape == LocalShape::kLinear;
 }
 
 void PlaneDetector::vote_sample(const Voxel& voxel, const Eigen::Vector3f& position_m) noexcept {
@@ -160,22 +166,20 @@ void PlaneDetector::vote_sample(const Voxel& voxel, const Eigen::Vector3f& posit
 }
 
 void PlaneDetector::detect_in_section(CellKey section) noexcept {
-  const std::size_t count = sections_.gather(section, section_samples_);
-  const std::span<Voxel> voxels = voxels_.slots();
   // Samples that an earlier, overlapping section gave to a plane neither vote nor count: if
-  // too few points are left for a plane, the section is done before it starts.
-  double free_weight = 0.0;
-  for (std::size_t i = 0; i < count; ++i) {
-    const Voxel& voxel = voxels[section_samples_[i]];
-    if (voxel.owner < 0 &&
-        (voxel.shape == LocalShape::kPlanar || voxel.shape == LocalShape::kLinear ||
-         config_.voting_mode == VotingMode::kEveryOrientation)) {
-      free_weight += voxel.point_count;
-    }
+  // too few points are left for a plane, the section is done before its samples are read.
+  std::array<std::uint32_t, SectionGrid::kMaxBlocksPerSection> blocks{};
+  const std::size_t block_count = sections_.find_blocks(voxels_, section, blocks);
+  std::uint64_t free_points = 0;
+  for (std::size_t b = 0; b < block_count; ++b) {
+    free_points += block_free_points_[blocks[b]];
   }
-  if (free_weight < config_.min_votes) {
+  if (static_cast<double>(free_points) < config_.min_votes) {
     return;
   }
+  const std::size_t count = sections_.gather(
+      voxels_, std::span<const std::uint32_t>(blocks.data(), block_count), section_samples_);
+  const std::span<const Voxel> voxels = voxels_.voxels();
   ++stats_.sections_searched;
   const Eigen::Vector3f centre = sections_.centre_m(section);
   accumulator_.clear();
@@ -199,7 +203,7 @@ void PlaneDetector::detect_in_section(CellKey section) noexcept {
 
 bool PlaneDetector::refine(const HoughPeak& peak, const Eigen::Vector3f& section_centre_m,
                            std::size_t sample_count, SectionPlane& out) noexcept {
-  const std::span<Voxel> voxels = voxels_.slots();
+  const std::span<Voxel> voxels = voxels_.voxels();
   const Eigen::Vector3d centre = section_centre_m.cast<double>();
   Eigen::Vector3d normal = peak.normal.cast<double>();
   auto d_m = static_cast<double>(peak.d_m);  // relative to the section centre
@@ -239,7 +243,9 @@ bool PlaneDetector::refine(const HoughPeak& peak, const Eigen::Vector3f& section
   }
   const auto owner = static_cast<std::int32_t>(merger_.section_plane_count());
   for (std::size_t k = 0; k < inliers; ++k) {
-    voxels[section_samples_[inliers_[k]]].owner = owner;
+    Voxel& voxel = voxels[section_samples_[inliers_[k]]];
+    voxel.owner = owner;
+    block_free_points_[voxel.block] -= votes(voxel) ? voxel.point_count : 0;
   }
   out.moments = moments.shifted(centre);
   out.normal_unit = normal;

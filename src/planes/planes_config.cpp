@@ -16,8 +16,9 @@ std::string validate(const PlanesConfig& c) {
   if (!(c.sample_size_m > 0.0)) {
     return "sample_size_m must be > 0";
   }
-  if (!whole_multiple(c.section_stride_m, c.sample_size_m)) {
-    return "section_stride_m must be a whole multiple of sample_size_m";
+  if (std::abs(c.section_stride_m - 4.0 * c.sample_size_m) > 1e-6 * c.sample_size_m) {
+    return "section_stride_m must be 4 x sample_size_m (sections are made of the samples' 4 x 4 "
+           "x 4 blocks)";
   }
   if (!whole_multiple(c.section_size_m, c.section_stride_m)) {
     return "section_size_m must be a whole multiple of section_stride_m";

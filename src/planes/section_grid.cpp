@@ -1,120 +1,115 @@
 #include "blockmap/planes/section_grid.hpp"
 
 #include <algorithm>
+#include <array>
 
 #include "blockmap/core/check.hpp"
 
 namespace blockmap::planes {
-namespace {
 
-std::int64_t floor_div(std::int64_t a, std::int64_t b) {
-  const std::int64_t q = a / b;
-  return (a % b != 0 && (a < 0) != (b < 0)) ? q - 1 : q;
-}
-
-}  // namespace
-
-void SectionGrid::init(Arena& arena, std::size_t max_voxels, std::uint32_t voxels_per_block,
-                       std::uint32_t blocks_per_section, double voxel_size_m) {
-  BLOCKMAP_CHECK_MSG(voxels_per_block >= 1 && blocks_per_section >= 1, "bad section geometry");
-  voxels_per_block_ = voxels_per_block;
+void SectionGrid::init(Arena& arena, std::size_t max_blocks, std::uint32_t blocks_per_section,
+                       double block_size_m) {
+  BLOCKMAP_CHECK_MSG(max_blocks >= 1 && blocks_per_section >= 1 && blocks_per_section <= 4,
+                     "bad section geometry");
   blocks_per_section_ = blocks_per_section;
-  block_size_m_ = voxels_per_block * voxel_size_m;
-  order_ = arena.allocate_array<BlockVoxel>(max_voxels, "planes.section_grid");
-  voxel_order_ = arena.allocate_array<std::uint32_t>(max_voxels, "planes.section_grid");
-  block_range_ = arena.allocate_array<Range>(max_voxels, "planes.section_grid");
-  // Every block starts k^3 candidate sections before duplicates go.
+  block_size_m_ = block_size_m;
+  blocks_ = arena.allocate_array<CellKey>(max_blocks, "planes.section_grid");
+  // Every block starts k^3 sections at most.
   sections_ = arena.allocate_array<CellKey>(
-      max_voxels * blocks_per_section * blocks_per_section * blocks_per_section,
+      max_blocks * blocks_per_section * blocks_per_section * blocks_per_section,
       "planes.section_grid");
-  block_index_.init(arena, max_voxels, "planes.section_grid");
 }
 
-CellKey SectionGrid::block_of(CellKey voxel) const noexcept {
-  const auto cell = unpack_cell(voxel);
-  const auto per = static_cast<std::int64_t>(voxels_per_block_);
-  return pack_cell(floor_div(cell.x(), per), floor_div(cell.y(), per), floor_div(cell.z(), per));
+std::size_t SectionGrid::arena_bytes(std::size_t max_blocks,
+                                     std::uint32_t blocks_per_section) noexcept {
+  return max_blocks * (1 + blocks_per_section * blocks_per_section * blocks_per_section) *
+             sizeof(CellKey) +
+         std::size_t{128};  // two allocations, 64-byte aligned
 }
 
 void SectionGrid::build(const VoxelGrid& grid) noexcept {
   counters_ = Counters{};
-  const std::span<const Voxel> slots = grid.slots();
-  const std::span<const std::uint32_t> ids = grid.occupied();
-  const std::size_t n = std::min(ids.size(), order_.size());
-  for (std::size_t i = 0; i < n; ++i) {
-    order_[i] = BlockVoxel{block_of(slots[ids[i]].key), ids[i]};
-  }
-  std::sort(order_.begin(), order_.begin() + static_cast<std::ptrdiff_t>(n),
-            [](const BlockVoxel& a, const BlockVoxel& b) {
-              return a.block != b.block ? a.block < b.block : a.voxel < b.voxel;
-            });
-  for (std::size_t i = 0; i < n; ++i) {
-    voxel_order_[i] = order_[i].voxel;
-  }
-  voxel_count_ = n;
-  // One range per occupied block.
-  block_index_.clear();
-  std::size_t blocks = 0;
-  for (std::size_t i = 0; i < n;) {
-    std::size_t end = i;
-    while (end < n && order_[end].block == order_[i].block) {
-      ++end;
+  std::size_t block_count = 0;
+  for (std::size_t block = 0; block < grid.block_count(); ++block) {
+    if (grid.block_range(block).count > 0 && block_count < blocks_.size()) {
+      blocks_[block_count++] = grid.block_key(block);
     }
-    std::uint32_t slot = 0;
-    block_index_.find_or_insert(order_[i].block, static_cast<std::uint32_t>(blocks), slot);
-    block_range_[blocks++] = Range{static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(end)};
-    i = end;
   }
-  // A section starting at block s covers blocks s .. s + k - 1: every occupied block b is in
-  // the sections starting at b - k + 1 .. b.
-  section_count_ = 0;
-  const auto k = static_cast<std::int64_t>(blocks_per_section_);
-  for (std::size_t i = 0; i < n;) {
-    const CellKey block = order_[i].block;
-    while (i < n && order_[i].block == block) {
-      ++i;
-    }
-    const auto b = unpack_cell(block);
-    for (std::int64_t dx = 0; dx < k; ++dx) {
-      for (std::int64_t dy = 0; dy < k; ++dy) {
-        for (std::int64_t dz = 0; dz < k; ++dz) {
-          if (section_count_ == sections_.size()) {
-            ++counters_.sections_dropped_full;
-            continue;
-          }
-          sections_[section_count_++] = pack_cell(b.x() - dx, b.y() - dy, b.z() - dz);
-        }
+  std::sort(blocks_.begin(), blocks_.begin() + static_cast<std::ptrdiff_t>(block_count));
+  merge_shifted_block_lists(block_count);
+}
+
+void SectionGrid::merge_shifted_block_lists(std::size_t block_count) noexcept {
+  // A section starting at block s covers blocks s .. s + k - 1, so the sections that hold
+  // samples start at b - o for every occupied block b and offset o in {0 .. k-1}^3. For each
+  // o, the keys b - o are as sorted as the blocks (a packed key minus a small offset has no
+  // borrow between fields): merging the k^3 shifted lists gives the sections in key order,
+  // each once, without sorting k^3 times as many keys.
+  const std::uint32_t k = blocks_per_section_;
+  std::array<CellKey, 64> offsets{};
+  std::array<std::size_t, 64> next{};
+  std::size_t lists = 0;
+  for (std::uint32_t dx = 0; dx < k; ++dx) {
+    for (std::uint32_t dy = 0; dy < k; ++dy) {
+      for (std::uint32_t dz = 0; dz < k; ++dz) {
+        offsets[lists++] = (CellKey{dx} << 42) | (CellKey{dy} << 21) | CellKey{dz};
       }
     }
   }
-  std::sort(sections_.begin(), sections_.begin() + static_cast<std::ptrdiff_t>(section_count_));
-  section_count_ = static_cast<std::size_t>(
-      std::unique(sections_.begin(),
-                  sections_.begin() + static_cast<std::ptrdiff_t>(section_count_)) -
-      sections_.begin());
+  section_count_ = 0;
+  for (;;) {
+    CellKey lowest = kNoCell;
+    for (std::size_t list = 0; list < lists; ++list) {
+      if (next[list] < block_count) {
+        lowest = std::min(lowest, blocks_[next[list]] - offsets[list]);
+      }
+    }
+    if (lowest == kNoCell) {
+      return;
+    }
+    for (std::size_t list = 0; list < lists; ++list) {
+      if (next[list] < block_count && blocks_[next[list]] - offsets[list] == lowest) {
+        ++next[list];
+      }
+    }
+    if (section_count_ == sections_.size()) {
+      ++counters_.sections_dropped_full;
+      continue;
+    }
+    sections_[section_count_++] = lowest;
+  }
 }
 
-std::size_t SectionGrid::gather(CellKey section, std::span<std::uint32_t> out) noexcept {
+std::size_t SectionGrid::find_blocks(
+    const VoxelGrid& grid, CellKey section,
+    std::span<std::uint32_t, kMaxBlocksPerSection> out) const noexcept {
   const auto s = unpack_cell(section);
   const auto k = static_cast<std::int64_t>(blocks_per_section_);
   std::size_t count = 0;
   for (std::int64_t dx = 0; dx < k; ++dx) {
     for (std::int64_t dy = 0; dy < k; ++dy) {
       for (std::int64_t dz = 0; dz < k; ++dz) {
-        const std::uint32_t block =
-            block_index_.find(pack_cell(s.x() + dx, s.y() + dy, s.z() + dz));
-        if (block == CellIndex::kAbsent) {
-          continue;
-        }
-        const Range range = block_range_[block];
-        for (std::uint32_t i = range.begin; i < range.end; ++i) {
-          if (count == out.size()) {
-            ++counters_.voxels_dropped_full;
-            continue;
-          }
-          out[count++] = order_[i].voxel;
+        const std::uint32_t block = grid.find_block(pack_cell(s.x() + dx, s.y() + dy, s.z() + dz));
+        if (block != CellIndex::kAbsent) {
+          out[count++] = block;
         }
       }
+    }
+  }
+  return count;
+}
+
+std::size_t SectionGrid::gather(const VoxelGrid& grid, std::span<const std::uint32_t> blocks,
+                                std::span<std::uint32_t> out) noexcept {
+  std::size_t count = 0;
+  for (const std::uint32_t block : blocks) {
+    const VoxelGrid::BlockRange range = grid.block_range(block);
+    for (std::uint32_t id = range.first; id < range.first + range.count; ++id) {
+      if (count == out.size()) {
+        ++counters_.voxels_dropped_full;
+        continue;
+      }
+      out[count++] = id;
     }
   }
   return count;

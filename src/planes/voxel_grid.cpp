@@ -4,8 +4,9 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <numbers>
 
-#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 
 #include "blockmap/core/check.hpp"
 
@@ -60,6 +61,10 @@ bool CellIndex::find_or_insert(CellKey key, std::uint32_t value, std::uint32_t& 
   }
 }
 
+std::size_t CellIndex::arena_bytes(std::size_t max_keys) noexcept {
+  return std::bit_ceil(std::max<std::size_t>(2 * max_keys, 64)) * sizeof(Slot) + 64;
+}
+
 // ---- VoxelGrid ----
 
 void VoxelGrid::init(Arena& arena, double voxel_size_m, std::size_t max_voxels) {
@@ -71,26 +76,42 @@ void VoxelGrid::init(Arena& arena, double voxel_size_m, std::size_t max_voxels) 
   const std::size_t slots = std::bit_ceil(std::max<std::size_t>(2 * max_voxels, 64));
   shift_ = 64u - static_cast<std::uint32_t>(std::countr_zero(slots));
   mask_ = slots - 1;
-  slots_ = arena.allocate_array<Voxel>(slots, "planes.voxel_grid");
-  occupied_ = arena.allocate_array<std::uint32_t>(max_voxels, "planes.voxel_grid");
+  table_ = arena.allocate_array<VoxelSums>(slots, "planes.voxel_grid");
+  slots_in_use_ = arena.allocate_array<std::uint32_t>(max_voxels, "planes.voxel_grid");
+  voxels_ = arena.allocate_array<Voxel>(max_voxels, "planes.voxel_grid");
+  // At most one block per voxel.
   block_index_.init(arena, max_voxels, "planes.voxel_grid");
+  block_keys_ = arena.allocate_array<CellKey>(max_voxels, "planes.voxel_grid");
   block_masks_ = arena.allocate_array<std::uint64_t>(max_voxels, "planes.voxel_grid");
-  count_ = 0;
+  live_masks_ = arena.allocate_array<std::uint64_t>(max_voxels, "planes.voxel_grid");
+  block_first_ = arena.allocate_array<std::uint32_t>(max_voxels, "planes.voxel_grid");
+  block_order_ = arena.allocate_array<BlockOrder>(max_voxels, "planes.voxel_grid");
+  slot_count_ = 0;
   clear();
+}
+
+std::size_t VoxelGrid::arena_bytes(std::size_t max_voxels) noexcept {
+  const std::size_t slots = std::bit_ceil(std::max<std::size_t>(2 * max_voxels, 64));
+  constexpr std::size_t kAlignment = 64;  // per allocation, at most
+  return slots * sizeof(VoxelSums) +
+         max_voxels * (sizeof(std::uint32_t) + sizeof(Voxel) + sizeof(CellKey) +
+                       2 * sizeof(std::uint64_t) + sizeof(std::uint32_t) + sizeof(BlockOrder)) +
+         CellIndex::arena_bytes(max_voxels) + 8 * kAlignment;
 }
 
 void VoxelGrid::clear() noexcept {
   // Few voxels in a large table: empty just their slots. Linear probing stays consistent
   // when keys are removed newest first.
-  if (count_ * 8 < slots_.size()) {
-    for (std::size_t i = count_; i-- > 0;) {
-      slots_[occupied_[i]].key = kNoCell;
+  if (slot_count_ * 8 < table_.size()) {
+    for (std::size_t i = slot_count_; i-- > 0;) {
+      table_[slots_in_use_[i]].key = kNoCell;
     }
   } else {
-    for (Voxel& slot : slots_) {
+    for (VoxelSums& slot : table_) {
       slot.key = kNoCell;
     }
   }
+  slot_count_ = 0;
   count_ = 0;
   block_index_.clear();
   block_count_ = 0;
@@ -100,7 +121,7 @@ void VoxelGrid::clear() noexcept {
 
 std::uint32_t VoxelGrid::find(CellKey key) const noexcept {
   for (std::size_t slot = home_slot(key);; slot = (slot + 1) & mask_) {
-    const CellKey k = slots_[slot].key;
+    const CellKey k = table_[slot].key;
     if (k == key) {
       return static_cast<std::uint32_t>(slot);
     }
@@ -112,16 +133,16 @@ std::uint32_t VoxelGrid::find(CellKey key) const noexcept {
 
 std::uint32_t VoxelGrid::find_or_create(CellKey key) noexcept {
   for (std::size_t slot = home_slot(key);; slot = (slot + 1) & mask_) {
-    Voxel& voxel = slots_[slot];
+    VoxelSums& voxel = table_[slot];
     if (voxel.key == key) {
       return static_cast<std::uint32_t>(slot);
     }
     if (voxel.key == kNoCell) {
-      if (count_ == occupied_.size()) {
+      if (slot_count_ == slots_in_use_.size()) {
         return CellIndex::kAbsent;
       }
-      voxel = Voxel{.key = key};
-      occupied_[count_++] = static_cast<std::uint32_t>(slot);
+      voxel = VoxelSums{.key = key};
+      slots_in_use_[slot_count_++] = static_cast<std::uint32_t>(slot);
       const auto cell = unpack_cell(key);
       mark_in_block(cell.x(), cell.y(), cell.z());
       return static_cast<std::uint32_t>(slot);
@@ -132,18 +153,73 @@ std::uint32_t VoxelGrid::find_or_create(CellKey key) noexcept {
 void VoxelGrid::mark_in_block(std::int64_t x, std::int64_t y, std::int64_t z) noexcept {
   std::uint32_t block = 0;
   // As many blocks as voxels at most: the insert cannot fail when the voxel was created.
-  if (block_index_.find_or_insert(pack_cell(x >> 2, y >> 2, z >> 2),
-                                  static_cast<std::uint32_t>(block_count_), block) &&
+  const CellKey key = block_of_cell(x, y, z);
+  if (block_index_.find_or_insert(key, static_cast<std::uint32_t>(block_count_), block) &&
       block == block_count_) {
-    block_masks_[block_count_++] = 0;
+    block_keys_[block_count_] = key;
+    block_masks_[block_count_] = 0;
+    live_masks_[block_count_] = 0;
+    block_first_[block_count_] = 0;
+    ++block_count_;
   }
-  block_masks_[block] |= std::uint64_t{1} << (((x & 3) << 4) | ((y & 3) << 2) | (z & 3));
+  block_masks_[block] |= std::uint64_t{1} << bit_in_block(x, y, z);
 }
 
-std::uint64_t VoxelGrid::block_mask(std::int64_t bx, std::int64_t by,
-                                    std::int64_t bz) const noexcept {
-  const std::uint32_t block = block_index_.find(pack_cell(bx, by, bz));
-  return block == CellIndex::kAbsent ? 0 : block_masks_[block];
+namespace {
+
+// Spreads the low 21 bits of v to every third bit (the Morton interleave of one axis).
+std::uint64_t spread_bits(std::uint64_t v) noexcept {
+  v &= 0x1FFFFF;
+  v = (v | (v << 32)) & 0x1F00000000FFFFull;
+  v = (v | (v << 16)) & 0x1F0000FF0000FFull;
+  v = (v | (v << 8)) & 0x100F00F00F00F00Full;
+  v = (v | (v << 4)) & 0x10C30C30C30C30C3ull;
+  v = (v | (v << 2)) & 0x1249249249249249ull;
+  return v;
+}
+
+// The Z-order (Morton) code of a packed key: keys near in space are mostly near in this order.
+std::uint64_t morton_code(CellKey key) noexcept {
+  return (spread_bits(key >> 42) << 2) | (spread_bits(key >> 21) << 1) | spread_bits(key);
+}
+
+}  // namespace
+
+void VoxelGrid::compact() noexcept {
+  // Blocks in Z-order: a sample's neighbours in the 26 blocks around its own are then mostly
+  // near it in memory too (in first-touch order they were anywhere along the path).
+  for (std::size_t block = 0; block < block_count_; ++block) {
+    block_order_[block] =
+        BlockOrder{morton_code(block_keys_[block]), static_cast<std::uint32_t>(block)};
+  }
+  std::sort(block_order_.begin(), block_order_.begin() + static_cast<std::ptrdiff_t>(block_count_),
+            [](const BlockOrder& a, const BlockOrder& b) { return a.code < b.code; });
+  count_ = 0;
+  for (std::size_t i = 0; i < block_count_; ++i) {
+    const std::uint32_t block = block_order_[i].block;
+    block_first_[block] = static_cast<std::uint32_t>(count_);
+    const Eigen::Matrix<std::int64_t, 3, 1> base = unpack_cell(block_keys_[block]) * kBlockEdge;
+    std::uint64_t live = 0;
+    for (std::uint64_t cells = block_masks_[block]; cells != 0; cells &= cells - 1) {
+      const auto bit = static_cast<std::uint32_t>(std::countr_zero(cells));
+      // A cell marked in its block always has its slot: blocks are marked on creation.
+      const VoxelSums& sums = table_[find(
+          pack_cell(base.x() + (bit >> 4), base.y() + ((bit >> 2) & 3), base.z() + (bit & 3)))];
+      if (sums.point_count == 0) {
+        continue;  // every point taken back out
+      }
+      Voxel& voxel = voxels_[count_++];
+      voxel = Voxel{};
+      static_cast<VoxelSums&>(voxel) = sums;
+      voxel.block = block;
+      live |= std::uint64_t{1} << bit;
+    }
+    live_masks_[block] = live;
+  }
+}
+
+VoxelGrid::BlockRange VoxelGrid::block_range(std::size_t block) const noexcept {
+  return {block_first_[block], static_cast<std::uint32_t>(std::popcount(live_masks_[block]))};
 }
 
 Eigen::Vector3f VoxelGrid::centre_m(CellKey key) const noexcept {
@@ -151,12 +227,12 @@ Eigen::Vector3f VoxelGrid::centre_m(CellKey key) const noexcept {
   return ((cell.cast<double>().array() + 0.5) * voxel_size_m_).matrix().cast<float>();
 }
 
-Eigen::Vector3f VoxelGrid::centroid_m(const Voxel& voxel) const noexcept {
+Eigen::Vector3f VoxelGrid::centroid_m(const VoxelSums& voxel) const noexcept {
   const float n = static_cast<float>(std::max<std::uint32_t>(voxel.point_count, 1));
   return centre_m(voxel.key) + Eigen::Vector3f(voxel.sum_m[0], voxel.sum_m[1], voxel.sum_m[2]) / n;
 }
 
-PointMoments VoxelGrid::moments(const Voxel& voxel,
+PointMoments VoxelGrid::moments(const VoxelSums& voxel,
                                 const Eigen::Vector3d& origin_m) const noexcept {
   PointMoments local;
   local.weight = voxel.point_count;
@@ -168,34 +244,56 @@ PointMoments VoxelGrid::moments(const Voxel& voxel,
   return local.shifted(centre_m(voxel.key).cast<double>() - origin_m);
 }
 
-void VoxelGrid::add_or_remove(const Eigen::Vector3f& point_m, int sign) noexcept {
+VoxelGrid::LocatedPoint VoxelGrid::locate(const Eigen::Vector3f& point_m) const noexcept {
+  LocatedPoint located;
   if (!point_m.allFinite()) {
-    ++counters_.points_dropped_nonfinite;
-    return;
+    located.status = LocatedPoint::Status::kNonFinite;
+    return located;
   }
   const Eigen::Vector3f scaled = point_m * inverse_size_;
+  // Far beyond the key range is checked in float first: a huge float does not fit an int64.
+  constexpr auto kFarCells = static_cast<float>(2 * kCellKeyBias);
   const Eigen::Vector3f floored = scaled.array().floor();
+  if (floored.cwiseAbs().maxCoeff() >= kFarCells) {
+    located.status = LocatedPoint::Status::kOutOfRange;
+    return located;
+  }
   const auto x = static_cast<std::int64_t>(floored.x());
   const auto y = static_cast<std::int64_t>(floored.y());
   const auto z = static_cast<std::int64_t>(floored.z());
   if (!cell_in_range(x, y, z)) {
-    ++counters_.points_dropped_range;
-    return;
+    located.status = LocatedPoint::Status::kOutOfRange;
+    return located;
   }
-  const CellKey key = pack_cell(x, y, z);
+  located.key = pack_cell(x, y, z);
+  // The offset from the voxel's centre, from the fraction of the scaled point.
+  located.offset = (scaled - floored).array() - 0.5f;
+  return located;
+}
+
+void VoxelGrid::accumulate(const LocatedPoint& point, int sign) noexcept {
+  switch (point.status) {
+    case LocatedPoint::Status::kNonFinite:
+      ++counters_.points_dropped_nonfinite;
+      return;
+    case LocatedPoint::Status::kOutOfRange:
+      ++counters_.points_dropped_range;
+      return;
+    case LocatedPoint::Status::kOk:
+      break;
+  }
   // Consecutive points of a scan often fall in the same voxel: remember the last one.
-  if (key != last_key_ || last_index_ == CellIndex::kAbsent) {
-    const std::uint32_t id = find_or_create(key);
+  if (point.key != last_key_ || last_index_ == CellIndex::kAbsent) {
+    const std::uint32_t id = find_or_create(point.key);
     if (id == CellIndex::kAbsent) {
       ++counters_.points_dropped_full;
       return;
     }
-    last_key_ = key;
+    last_key_ = point.key;
     last_index_ = id;
   }
-  Voxel& voxel = slots_[last_index_];
-  // The offset from the voxel's centre, from the fraction of the scaled point.
-  const Eigen::Vector3f local = (scaled - floored).array() - 0.5f;
+  VoxelSums& voxel = table_[last_index_];
+  const Eigen::Vector3f& local = point.offset;
   const float s = static_cast<float>(sign) * size_m_;
   const float s2 = s * size_m_;
   voxel.point_count =
@@ -215,68 +313,231 @@ void VoxelGrid::add_or_remove(const Eigen::Vector3f& point_m, int sign) noexcept
 }
 
 void VoxelGrid::add_points(std::span<const Eigen::Vector3f> points_m) noexcept {
+  // Pipelined: each point is located kAhead points before it is summed, and its slot fetched
+  // then (the table is tens of MiB; a new cell is a cache miss), once per change of cell.
   constexpr std::size_t kAhead = 8;
-  for (std::size_t i = 0; i < points_m.size(); ++i) {
-    if (i + kAhead < points_m.size()) {
-      const Eigen::Vector3f ahead = points_m[i + kAhead] * inverse_size_;
-      if (ahead.allFinite() && ahead.cwiseAbs().maxCoeff() < static_cast<float>(kCellKeyBias - 1)) {
-        const Eigen::Vector3f cell = ahead.array().floor();
-        __builtin_prefetch(&slots_[home_slot(pack_cell(static_cast<std::int64_t>(cell.x()),
-                                                       static_cast<std::int64_t>(cell.y()),
-                                                       static_cast<std::int64_t>(cell.z())))]);
-      }
+  std::array<LocatedPoint, kAhead> ahead;
+  CellKey fetched = kNoCell;
+  const auto prepare = [&](std::size_t i) {
+    LocatedPoint& located = ahead[i % kAhead];
+    located = locate(points_m[i]);
+    if (located.status == LocatedPoint::Status::kOk && located.key != fetched) {
+      fetched = located.key;
+      __builtin_prefetch(&table_[home_slot(located.key)]);
     }
-    add_or_remove(points_m[i], 1);
+  };
+  const std::size_t n = points_m.size();
+  for (std::size_t i = 0; i < std::min(n, kAhead); ++i) {
+    prepare(i);
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    const LocatedPoint located = ahead[i % kAhead];
+    if (i + kAhead < n) {
+      prepare(i + kAhead);
+    }
+    accumulate(located, 1);
   }
 }
 
-void VoxelGrid::estimate_shapes(std::span<const std::uint32_t> order, std::uint32_t min_points,
-                                double max_planarity_ratio, double max_line_ratio) noexcept {
-  const auto planar_ratio_sq = static_cast<float>(max_planarity_ratio * max_planarity_ratio);
-  const auto line_ratio_sq = static_cast<float>(max_line_ratio * max_line_ratio);
-  const auto size = static_cast<float>(voxel_size_m_);
-  // The occupancy of the 3 x 3 x 3 blocks around the current voxel's block, reloaded when the
-  // block changes (rarely, when `order` groups voxels by block).
-  std::array<std::uint64_t, 27> masks{};
-  CellKey mask_block = kNoCell;
-  for (const std::uint32_t i : order) {
-    Voxel& voxel = slots_[i];
-    const auto cell = unpack_cell(voxel.key);
-    const std::int64_t bx = cell.x() >> 2;
-    const std::int64_t by = cell.y() >> 2;
-    const std::int64_t bz = cell.z() >> 2;
-    if (pack_cell(bx, by, bz) != mask_block) {
-      mask_block = pack_cell(bx, by, bz);
-      for (std::int64_t k = 0; k < 27; ++k) {
-        masks[static_cast<std::size_t>(k)] =
-            block_mask(bx + k / 9 - 1, by + (k / 3) % 3 - 1, bz + k % 3 - 1);
+namespace {
+
+// The cells of a block next to its neighbour in direction (dx, dy, dz) (each -1, 0 or 1): the
+// ones whose 3 x 3 x 3 neighbourhood reaches into that neighbour.
+constexpr std::uint64_t cells_facing(int dx, int dy, int dz) noexcept {
+  std::uint64_t mask = 0;
+  for (int x = 0; x < 4; ++x) {
+    for (int y = 0; y < 4; ++y) {
+      for (int z = 0; z < 4; ++z) {
+        const bool faces = (dx == 0 || x == (dx < 0 ? 0 : 3)) &&
+                           (dy == 0 || y == (dy < 0 ? 0 : 3)) && (dz == 0 || z == (dz < 0 ? 0 : 3));
+        if (faces) {
+          mask |= std::uint64_t{1} << ((x << 4) | (y << 2) | z);
+        }
       }
     }
-    // The neighbourhood's moments relative to this voxel's centre.
-    float n = 0.0f;
-    std::array<float, 3> sum{};
-    std::array<float, 6> outer{};  // xx xy xz yy yz zz
-    for (std::int64_t dx = -1; dx <= 1; ++dx) {
-      for (std::int64_t dy = -1; dy <= 1; ++dy) {
-        for (std::int64_t dz = -1; dz <= 1; ++dz) {
-          const std::int64_t x = cell.x() + dx;
-          const std::int64_t y = cell.y() + dy;
-          const std::int64_t z = cell.z() + dz;
-          const auto which = static_cast<std::size_t>(
-              ((x >> 2) - bx + 1) * 9 + ((y >> 2) - by + 1) * 3 + ((z >> 2) - bz + 1));
-          if (((masks[which] >> (((x & 3) << 4) | ((y & 3) << 2) | (z & 3))) & 1U) == 0) {
-            continue;
-          }
-          const std::uint32_t other = find(pack_cell(x, y, z));
-          if (other == CellIndex::kAbsent || slots_[other].point_count == 0) {
-            continue;
-          }
+  }
+  return mask;
+}
+
+constexpr std::array<std::uint64_t, 27> kCellsFacing = [] {
+  std::array<std::uint64_t, 27> masks{};
+  std::size_t k = 0;
+  for (int dx = -1; dx <= 1; ++dx) {
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dz = -1; dz <= 1; ++dz) {
+        masks[k++] = cells_facing(dx, dy, dz);
+      }
+    }
+  }
+  return masks;
+}();
+
+}  // namespace
+
+void VoxelGrid::load_neighbourhood(std::int64_t bx, std::int64_t by, std::int64_t bz,
+                                   std::uint64_t live, BlockNeighbourhood& out) const noexcept {
+  // Most blocks hold a few samples on one surface: only the neighbours that their cells touch
+  // are looked up.
+  std::size_t k = 0;
+  for (std::int64_t dx = -1; dx <= 1; ++dx) {
+    for (std::int64_t dy = -1; dy <= 1; ++dy) {
+      for (std::int64_t dz = -1; dz <= 1; ++dz, ++k) {
+        out.live_masks[k] = 0;
+        out.first[k] = 0;
+        if ((live & kCellsFacing[k]) == 0) {
+          continue;
+        }
+        const std::uint32_t block = block_index_.find(pack_cell(bx + dx, by + dy, bz + dz));
+        if (block != CellIndex::kAbsent) {
+          out.live_masks[k] = live_masks_[block];
+          out.first[k] = block_first_[block];
+        }
+      }
+    }
+  }
+}
+
+void VoxelGrid::estimate_shapes(std::uint32_t min_points, double max_planarity_ratio,
+                                double max_line_ratio) noexcept {
+  const auto planar_ratio_sq = static_cast<float>(max_planarity_ratio * max_planarity_ratio);
+  const auto line_ratio_sq = static_cast<float>(max_line_ratio * max_line_ratio);
+  BlockNeighbourhood around;
+  for (std::size_t i = 0; i < block_count_; ++i) {
+    const std::uint32_t block = block_order_[i].block;
+    const BlockRange range = block_range(block);
+    if (range.count == 0) {
+      continue;
+    }
+    const auto b = unpack_cell(block_keys_[block]);
+    load_neighbourhood(b.x(), b.y(), b.z(), live_masks_[block], around);
+    for (std::uint32_t id = range.first; id < range.first + range.count; ++id) {
+      estimate_shape(voxels_[id], around, planar_ratio_sq, line_ratio_sq,
+                     static_cast<float>(min_points));
+    }
+  }
+}
+
+namespace {
+
+// Cells of a block by a 4-bit set of local coordinates along one axis (bit = x*16 + y*4 + z):
+// `first` is the mask of the cells with coordinate 0 on that axis, `step` the bit distance
+// between coordinates.
+constexpr std::array<std::uint64_t, 16> cells_with(std::uint64_t first, std::uint32_t step) {
+  std::array<std::uint64_t, 16> masks{};
+  for (std::uint32_t set = 0; set < 16; ++set) {
+    for (std::uint32_t c = 0; c < 4; ++c) {
+      masks[set] |= ((set >> c) & 1U) != 0 ? first << (c * step) : 0;
+    }
+  }
+  return masks;
+}
+constexpr std::array<std::uint64_t, 16> kCellsWithX = cells_with(0xFFFF, 16);
+constexpr std::array<std::uint64_t, 16> kCellsWithY = cells_with(0x000F000F000F000F, 4);
+constexpr std::array<std::uint64_t, 16> kCellsWithZ = cells_with(0x1111111111111111, 1);
+
+// Along one axis, the cells within one of local coordinate `local` (0..3): in this block,
+// and in the previous or next block when `local` is at a border.
+struct AxisSpan {
+  int block_offset = 0;      // -1, 0 or 1
+  std::uint32_t locals = 0;  // 4-bit set of local coordinates in that block
+};
+std::size_t axis_spans(std::int64_t local, std::array<AxisSpan, 2>& out) noexcept {
+  std::size_t count = 0;
+  if (local == 0) {
+    out[count++] = {-1, 0b1000U};
+  }
+  const std::int64_t low = std::max<std::int64_t>(local - 1, 0);
+  const std::int64_t high = std::min<std::int64_t>(local + 1, 3);
+  out[count++] = {0, ((2U << high) - 1U) & ~((1U << low) - 1U)};
+  if (local == 3) {
+    out[count++] = {1, 0b0001U};
+  }
+  return count;
+}
+
+// The eigenvalues of a symmetric 3 x 3 matrix, ascending, in closed form (the trigonometric
+// solution of its characteristic cubic): the shape pass needs them for every sample, and one
+// eigenvector only when the shape is planar or linear.
+Eigen::Vector3d symmetric_eigenvalues(const Eigen::Matrix3d& a) noexcept {
+  const double q = a.trace() / 3.0;
+  const double off = a(0, 1) * a(0, 1) + a(0, 2) * a(0, 2) + a(1, 2) * a(1, 2);
+  const Eigen::Matrix3d shifted = a - q * Eigen::Matrix3d::Identity();
+  const double p2 = (shifted.diagonal().squaredNorm() + 2.0 * off) / 6.0;
+  if (p2 <= 0.0) {
+    return Eigen::Vector3d::Constant(q);  // a multiple of the identity
+  }
+  const double p = std::sqrt(p2);
+  const double r = std::clamp(shifted.determinant() / (2.0 * p2 * p), -1.0, 1.0);
+  const double third = std::acos(r) / 3.0;
+  constexpr double kTwoThirdsPi = 2.0 * std::numbers::pi / 3.0;
+  const double largest = q + 2.0 * p * std::cos(third);
+  const double smallest = q + 2.0 * p * std::cos(third + kTwoThirdsPi);
+  return {smallest, 3.0 * q - largest - smallest, largest};
+}
+
+// The unit eigenvector of symmetric `a` for `eigenvalue`, when that eigenvalue is well apart
+// from the other two (the callers' ratio tests make sure): the rows of a - eigenvalue I span
+// the plane perpendicular to it, so the largest cross product of two rows is the best
+// conditioned estimate.
+Eigen::Vector3d eigenvector_of(const Eigen::Matrix3d& a, double eigenvalue) noexcept {
+  const Eigen::Matrix3d m = a - eigenvalue * Eigen::Matrix3d::Identity();
+  const Eigen::Vector3d c01 = m.row(0).cross(m.row(1));
+  const Eigen::Vector3d c02 = m.row(0).cross(m.row(2));
+  const Eigen::Vector3d c12 = m.row(1).cross(m.row(2));
+  const double n01 = c01.squaredNorm();
+  const double n02 = c02.squaredNorm();
+  const double n12 = c12.squaredNorm();
+  const Eigen::Vector3d& best = n01 >= n02 ? (n01 >= n12 ? c01 : c12) : (n02 >= n12 ? c02 : c12);
+  const double norm = best.norm();
+  return norm > 0.0 ? Eigen::Vector3d(best / norm) : Eigen::Vector3d::UnitZ();
+}
+
+}  // namespace
+
+void VoxelGrid::estimate_shape(Voxel& voxel, const BlockNeighbourhood& around,
+                               float planar_ratio_sq, float line_ratio_sq,
+                               float min_points) const noexcept {
+  const auto cell = unpack_cell(voxel.key);
+  const std::int64_t lx = cell.x() & 3;
+  const std::int64_t ly = cell.y() & 3;
+  const std::int64_t lz = cell.z() & 3;
+  std::array<AxisSpan, 2> xs;
+  std::array<AxisSpan, 2> ys;
+  std::array<AxisSpan, 2> zs;
+  const std::size_t nx = axis_spans(lx, xs);
+  const std::size_t ny = axis_spans(ly, ys);
+  const std::size_t nz = axis_spans(lz, zs);
+  // The neighbourhood's moments relative to this voxel's centre, summed over the occupied
+  // cells only: the set bits of each neighbouring block's live mask inside the 3 x 3 x 3 box
+  // (testing all 27 cells mispredicted a branch on every other one).
+  float n = 0.0f;
+  std::array<float, 3> sum{};
+  std::array<float, 6> outer{};  // xx xy xz yy yz zz
+  for (std::size_t i = 0; i < nx; ++i) {
+    for (std::size_t j = 0; j < ny; ++j) {
+      for (std::size_t k = 0; k < nz; ++k) {
+        const int which_signed =
+            (xs[i].block_offset + 1) * 9 + (ys[j].block_offset + 1) * 3 + zs[k].block_offset + 1;
+        const auto which = static_cast<std::size_t>(which_signed);
+        const std::uint64_t live = around.live_masks[which];
+        std::uint64_t cells = live & kCellsWithX[xs[i].locals] & kCellsWithY[ys[j].locals] &
+                              kCellsWithZ[zs[k].locals];
+        for (; cells != 0; cells &= cells - 1) {
+          const auto bit = static_cast<std::uint32_t>(std::countr_zero(cells));
+          // The cell's id: its block's first id plus the live cells before it in bit order.
+          const Voxel& v =
+              voxels_[around.first[which] + static_cast<std::uint32_t>(std::popcount(
+                                                live & ((std::uint64_t{1} << bit) - 1)))];
           // Parallel axis: moments about the other voxel's centre, moved to this one's.
-          const Voxel& v = slots_[other];
+          const float tx =
+              static_cast<float>(xs[i].block_offset * 4 + static_cast<int>(bit >> 4) - lx) *
+              size_m_;
+          const float ty =
+              static_cast<float>(ys[j].block_offset * 4 + static_cast<int>((bit >> 2) & 3) - ly) *
+              size_m_;
+          const float tz =
+              static_cast<float>(zs[k].block_offset * 4 + static_cast<int>(bit & 3) - lz) * size_m_;
           const auto w = static_cast<float>(v.point_count);
-          const float tx = static_cast<float>(dx) * size;
-          const float ty = static_cast<float>(dy) * size;
-          const float tz = static_cast<float>(dz) * size;
           const float sx = v.sum_m[0];
           const float sy = v.sum_m[1];
           const float sz = v.sum_m[2];
@@ -293,29 +554,28 @@ void VoxelGrid::estimate_shapes(std::span<const std::uint32_t> order, std::uint3
         }
       }
     }
-    if (n < static_cast<float>(min_points)) {
-      voxel.shape = LocalShape::kTooFewPoints;
-      continue;
-    }
-    const Eigen::Vector3f mean = Eigen::Vector3f(sum[0], sum[1], sum[2]) / n;
-    Eigen::Matrix3f outer_matrix;
-    outer_matrix << outer[0], outer[1], outer[2], outer[1], outer[3], outer[4], outer[2], outer[4],
-        outer[5];
-    const Eigen::Matrix3f covariance = outer_matrix / n - mean * mean.transpose();
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> solver;
-    solver.computeDirect(covariance);
-    const Eigen::Vector3f l = solver.eigenvalues().cwiseMax(0.0f);  // ascending
-    if (l(1) <= line_ratio_sq * l(2)) {
-      // Thin in two directions: points along one line (a scan line on a far surface).
-      voxel.shape = LocalShape::kLinear;
-      voxel.axis = solver.eigenvectors().col(2).normalized();
-    } else if (l(0) <= planar_ratio_sq * l(1)) {
-      // Wide in two directions, thin in the third: a surface.
-      voxel.shape = LocalShape::kPlanar;
-      voxel.axis = solver.eigenvectors().col(0).normalized();
-    } else {
-      voxel.shape = LocalShape::kScattered;
-    }
+  }
+  if (n < min_points) {
+    voxel.shape = LocalShape::kTooFewPoints;
+    return;
+  }
+  const auto count = static_cast<double>(n);
+  const Eigen::Vector3d mean = Eigen::Vector3f(sum[0], sum[1], sum[2]).cast<double>() / count;
+  Eigen::Matrix3f outer_matrix;
+  outer_matrix << outer[0], outer[1], outer[2], outer[1], outer[3], outer[4], outer[2], outer[4],
+      outer[5];
+  const Eigen::Matrix3d covariance = outer_matrix.cast<double>() / count - mean * mean.transpose();
+  const Eigen::Vector3d l = symmetric_eigenvalues(covariance).cwiseMax(0.0);  // ascending
+  if (l(1) <= static_cast<double>(line_ratio_sq) * l(2)) {
+    // Thin in two directions: points along one line (a scan line on a far surface).
+    voxel.shape = LocalShape::kLinear;
+    voxel.axis = eigenvector_of(covariance, l(2)).cast<float>();
+  } else if (l(0) <= static_cast<double>(planar_ratio_sq) * l(1)) {
+    // Wide in two directions, thin in the third: a surface.
+    voxel.shape = LocalShape::kPlanar;
+    voxel.axis = eigenvector_of(covariance, l(0)).cast<float>();
+  } else {
+    voxel.shape = LocalShape::kScattered;
   }
 }
 

@@ -54,6 +54,9 @@ void BM_DetectPlanes(benchmark::State& state, VotingMode voting) {
   state.counters["points"] = static_cast<double>(count);
   state.counters["planes"] = static_cast<double>(planes);
   state.counters["samples"] = static_cast<double>(detector.stats().samples);
+  state.counters["blocks"] = static_cast<double>(detector.voxels().block_count());
+  state.counters["sections"] = static_cast<double>(detector.stats().sections);
+  state.counters["searched"] = static_cast<double>(detector.stats().sections_searched);
   state.counters["arena_MiB"] = static_cast<double>(arena.used_bytes()) / (1 << 20);
 }
 

@@ -1,6 +1,8 @@
 // The pieces of plane detection, one at a time, on clouds whose planes are known exactly.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <numbers>
@@ -11,7 +13,10 @@
 #include "blockmap/planes/hough_accumulator.hpp"
 #include "blockmap/planes/orientation_grid.hpp"
 #include "blockmap/planes/plane_detector.hpp"
+#include "blockmap/planes/point_moments.hpp"
 #include "blockmap/planes/polygon.hpp"
+#include "blockmap/planes/section_grid.hpp"
+#include "blockmap/planes/voxel_grid.hpp"
 
 namespace blockmap::planes {
 namespace {
@@ -290,6 +295,118 @@ TEST(PlaneDetector, NonFinitePointsAreDroppedAndCounted) {
   fixture.detector.detect();
   EXPECT_EQ(fixture.detector.stats().points, 1u);
   EXPECT_EQ(fixture.detector.stats().points_dropped, 2u);
+}
+
+// Points on a tilted plane around the origin (negative coordinates too, so that the floor
+// division into blocks is exercised), a few per 0.2 m voxel.
+std::vector<Eigen::Vector3f> tilted_plane_points(std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> along(-1.7f, 1.9f);
+  std::normal_distribution<float> noise(0.0f, 0.004f);
+  std::vector<Eigen::Vector3f> points;
+  for (int i = 0; i < 6000; ++i) {
+    const float x = along(rng);
+    const float y = along(rng);
+    points.emplace_back(x, y, 0.3f * x - 0.2f * y + 0.05f + noise(rng));
+  }
+  return points;
+}
+
+TEST(VoxelGrid, ShapesSumTheWholeNeighbourhoodAcrossBlockBorders) {
+  const std::vector<Eigen::Vector3f> points = tilted_plane_points(5);
+  Arena arena(VoxelGrid::arena_bytes(4096));
+  VoxelGrid grid;
+  grid.init(arena, 0.2, 4096);
+  grid.add_points(points);
+  grid.compact();
+  grid.estimate_shapes(10, 0.3, 0.15);
+  ASSERT_GT(grid.size(), 300u);
+  // Every sample once, block by block, each block's range holding exactly its own cells.
+  std::size_t in_blocks = 0;
+  for (std::size_t block = 0; block < grid.block_count(); ++block) {
+    const VoxelGrid::BlockRange range = grid.block_range(block);
+    in_blocks += range.count;
+    for (std::uint32_t id = range.first; id < range.first + range.count; ++id) {
+      const auto cell = unpack_cell(grid.voxels()[id].key);
+      EXPECT_EQ(pack_cell(cell.x() >> 2, cell.y() >> 2, cell.z() >> 2), grid.block_key(block));
+      EXPECT_EQ(grid.voxels()[id].block, block);
+    }
+  }
+  EXPECT_EQ(in_blocks, grid.size());
+  // Each sample's shape against a brute-force fit of the points of its 27 cells.
+  std::size_t planar = 0;
+  for (const Voxel& voxel : grid.voxels()) {
+    const auto cell = unpack_cell(voxel.key);
+    PointMoments moments;
+    for (const Eigen::Vector3f& p : points) {
+      const Eigen::Vector3f c = (p / 0.2f).array().floor();
+      if ((c.cast<std::int64_t>() - cell).cwiseAbs().maxCoeff() <= 1) {
+        moments.add(p.cast<double>());
+      }
+    }
+    if (moments.weight < 10) {
+      EXPECT_EQ(voxel.shape, LocalShape::kTooFewPoints);
+      continue;
+    }
+    const PlaneFit fit = fit_plane(moments);
+    ASSERT_TRUE(fit.valid);
+    EXPECT_EQ(voxel.shape, LocalShape::kPlanar);
+    EXPECT_GT(std::abs(voxel.axis.cast<double>().dot(fit.normal_unit)), 0.9999);
+    planar += voxel.shape == LocalShape::kPlanar ? 1 : 0;
+  }
+  EXPECT_GT(planar, grid.size() / 2);
+}
+
+TEST(VoxelGrid, PointsTakenBackOutLeaveNoSample) {
+  Arena arena(VoxelGrid::arena_bytes(64));
+  VoxelGrid grid;
+  grid.init(arena, 0.2, 64);
+  const Eigen::Vector3f a(0.05f, 0.05f, 0.05f);
+  const Eigen::Vector3f b(-0.45f, 0.05f, 0.05f);  // another block (x < 0)
+  grid.add_point(a);
+  grid.add_point(b);
+  grid.add_point(b);
+  grid.compact();
+  EXPECT_EQ(grid.size(), 2u);
+  grid.remove_point(a);
+  grid.compact();
+  ASSERT_EQ(grid.size(), 1u);
+  EXPECT_EQ(grid.voxels()[0].point_count, 2u);
+  EXPECT_EQ(unpack_cell(grid.voxels()[0].key), (Eigen::Matrix<std::int64_t, 3, 1>(-3, 0, 0)));
+  EXPECT_NEAR(grid.centroid_m(grid.voxels()[0]).x(), -0.45f, 1e-5f);
+}
+
+TEST(SectionGrid, ListsEverySectionThatHoldsASampleOnceInKeyOrder) {
+  const std::vector<Eigen::Vector3f> points = tilted_plane_points(9);
+  Arena arena(VoxelGrid::arena_bytes(4096) + SectionGrid::arena_bytes(4096, 2));
+  VoxelGrid grid;
+  grid.init(arena, 0.2, 4096);
+  grid.add_points(points);
+  grid.compact();
+  SectionGrid sections;
+  sections.init(arena, 4096, 2, 0.8);
+  sections.build(grid);
+  // Brute force: every section b - o over the occupied blocks b and offsets o in {0, 1}^3.
+  std::vector<CellKey> expected;
+  for (std::size_t block = 0; block < grid.block_count(); ++block) {
+    const auto b = unpack_cell(grid.block_key(block));
+    for (int o = 0; o < 8; ++o) {
+      expected.push_back(pack_cell(b.x() - (o >> 2), b.y() - ((o >> 1) & 1), b.z() - (o & 1)));
+    }
+  }
+  std::sort(expected.begin(), expected.end());
+  expected.erase(std::unique(expected.begin(), expected.end()), expected.end());
+  const std::span<const CellKey> listed = sections.sections();
+  EXPECT_EQ(std::vector<CellKey>(listed.begin(), listed.end()), expected);
+  // Each section gathers the samples of its 8 blocks.
+  std::size_t gathered = 0;
+  std::vector<std::uint32_t> ids(4096);
+  for (const CellKey section : listed) {
+    std::array<std::uint32_t, SectionGrid::kMaxBlocksPerSection> blocks{};
+    const std::size_t count = sections.find_blocks(grid, section, blocks);
+    gathered += sections.gather(grid, std::span<const std::uint32_t>(blocks.data(), count), ids);
+  }
+  EXPECT_EQ(gathered, 8 * grid.size());  // every sample lies in k^3 = 8 sections
 }
 
 TEST(PlanesConfig, ValidateNamesWhatIsWrong) {

@@ -5,8 +5,11 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <string>
 #include <vector>
+
+#include <unistd.h>
 
 #include "blockmap/hal/cloud/point_cloud_file.hpp"
 
@@ -228,6 +231,30 @@ TEST(PointCloudFiles, FileNamesPickTheFormatAndUnknownOnesAreRefused) {
   EXPECT_EQ(format_from_path("x.bin"), CloudFormat::kKittiBin);
   EXPECT_THROW(static_cast<void>(format_from_path("cloud.las")), CloudFileError);
   EXPECT_THROW(static_cast<void>(read_point_cloud("/nonexistent/cloud.ply")), CloudFileError);
+}
+
+TEST(PointCloudFiles, WrittenPlyReadsBackTheSamePoints) {
+  const std::filesystem::path folder =
+      std::filesystem::temp_directory_path() / ("blockmap_ply_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(folder);
+  const std::vector<Eigen::Vector3f> points = {{1.5f, -2.25f, 0.125f}, {-1e3f, 3e-3f, 42.0f}};
+  write_ply(folder / "plain.ply", points);
+  const PointCloud plain = read_point_cloud(folder / "plain.ply");
+  EXPECT_EQ(plain.format, "ply binary_little_endian");
+  EXPECT_EQ(plain.points_m, points);
+  // Georeferenced: doubles keep the millimetres, and the reader takes the origin out again.
+  const Eigen::Vector3d origin(500000.0, 4649776.0, 200.0);
+  write_ply(folder / "utm.ply", points, origin);
+  const PointCloud utm = read_point_cloud(folder / "utm.ply");
+  ASSERT_EQ(utm.points_m.size(), points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    EXPECT_LT(
+        ((utm.origin_m + utm.points_m[i].cast<double>()) - (origin + points[i].cast<double>()))
+            .norm(),
+        1e-3);
+  }
+  EXPECT_THROW(write_ply(folder / "missing" / "x.ply", points), CloudFileError);
+  std::filesystem::remove_all(folder);
 }
 
 }  // namespace

@@ -84,6 +84,7 @@ class Arena {
 
  private:
   struct HeapBlockDeleter {
+    std::align_val_t alignment;  // as the block was allocated
     void operator()(std::byte* block) const noexcept;
   };
 

@@ -64,6 +64,8 @@ class PlaneDetector {
 
  private:
   void detect_in_section(CellKey section) noexcept;
+  // Whether a sample votes at all (the local-shape mode skips scattered samples).
+  [[nodiscard]] bool votes(const Voxel& voxel) const noexcept;
   void vote_sample(const Voxel& voxel, const Eigen::Vector3f& position_m) noexcept;
   // PlaneRefiner: the inliers of a peak, refitted by least squares; false when too few.
   bool refine(const HoughPeak& peak, const Eigen::Vector3f& section_centre_m,
@@ -78,6 +80,7 @@ class PlaneDetector {
   SectionGrid sections_;
   HoughAccumulator accumulator_;
   PlaneMerger merger_;
+  std::span<std::uint32_t> block_free_points_;  // points of unclaimed voting samples, per block
   std::span<std::uint32_t> section_samples_;
   std::span<Eigen::Vector3f> section_positions_;
   std::span<std::uint32_t> inliers_;

@@ -32,8 +32,8 @@ struct PlanesConfig {
   double sample_size_m = 0.2;
   // Sections: cubes of section_size_m, one starting every section_stride_m along each axis,
   // so that they overlap and a plane crossing a section border is whole in a neighbour.
-  // section_size_m must be a whole multiple of section_stride_m, and the stride a whole
-  // multiple of sample_size_m.
+  // section_size_m must be a whole multiple of section_stride_m, and the stride is 4 samples:
+  // sections are made of the blocks of 4 x 4 x 4 samples that the voxel grid keeps.
   double section_size_m = 1.6;
   double section_stride_m = 0.8;
 

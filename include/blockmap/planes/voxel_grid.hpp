@@ -7,6 +7,7 @@
 // scattered (foliage, clutter), which decides how it votes.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 
@@ -62,6 +63,8 @@ class CellIndex {
   bool find_or_insert(CellKey key, std::uint32_t value, std::uint32_t& found) noexcept;
   [[nodiscard]] std::size_t size() const noexcept { return size_; }
   [[nodiscard]] std::size_t memory_bytes() const noexcept { return slots_.size_bytes(); }
+  // Bytes init() takes from the arena for `max_keys`.
+  [[nodiscard]] static std::size_t arena_bytes(std::size_t max_keys) noexcept;
 
  private:
   struct Slot {
@@ -71,9 +74,6 @@ class CellIndex {
   [[nodiscard]] std::size_t home_slot(CellKey key) const noexcept {
     return block_local_home_slot(key, shift_, mask_);
   }
-  [[nodiscard]] std::uint64_t block_mask(std::int64_t bx, std::int64_t by,
-                                         std::int64_t bz) const noexcept;
-  void mark_in_block(std::int64_t x, std::int64_t y, std::int64_t z) noexcept;
   std::span<Slot> slots_;
   std::uint32_t shift_ = 64;
   std::size_t mask_ = 0;
@@ -84,17 +84,36 @@ class CellIndex {
 // Marks an empty slot of the voxel table (a packed key never has its top bit set).
 inline constexpr CellKey kNoCell = ~CellKey{0};
 
-// In kNoCell slots only the key is meaningful.
-struct Voxel {
-  CellKey key = kNoCell;
+// Voxels are grouped in blocks of 4 x 4 x 4: a 64-bit mask says which cells of a block hold
+// points, and a cell's bit is its position in the block.
+inline constexpr std::int64_t kBlockEdge = 4;
+[[nodiscard]] constexpr CellKey block_of_cell(std::int64_t x, std::int64_t y,
+                                              std::int64_t z) noexcept {
+  return pack_cell(x >> 2, y >> 2, z >> 2);  // arithmetic shift: floor division by 4
+}
+[[nodiscard]] constexpr std::uint32_t bit_in_block(std::int64_t x, std::int64_t y,
+                                                   std::int64_t z) noexcept {
+  return static_cast<std::uint32_t>(((x & 3) << 4) | ((y & 3) << 2) | (z & 3));
+}
+
+// A voxel's sums while points arrive, in a slot of the voxel table (48 bytes: the table
+// stays small enough to be cached while points stream in).
+struct VoxelSums {
+  CellKey key = kNoCell;  // kNoCell: an empty slot; nothing else in it is meaningful
   std::uint32_t point_count = 0;
   float sum_m[3] = {0, 0, 0};                  // sum of (p - centre)
   float sum_outer_m2[6] = {0, 0, 0, 0, 0, 0};  // xx xy xz yy yz zz of (p - centre)
+};
+
+// A sample as the detector sees it: the sums, laid out block by block by compact(), and what
+// the shape estimate and the detector add.
+struct Voxel : VoxelSums {
   LocalShape shape = LocalShape::kTooFewPoints;
   Eigen::Vector3f axis = Eigen::Vector3f::UnitZ();  // normal (planar) or direction (linear)
   std::uint32_t axis_cell = 0;  // the orientation cell of the axis (the detector sets it)
   Eigen::Vector3f centroid_m = Eigen::Vector3f::Zero();  // the mean point (the detector sets it)
   std::int32_t owner = -1;  // the plane patch that took this voxel, or -1
+  std::uint32_t block = 0;  // the index of its block
 };
 
 class VoxelGrid {
@@ -105,70 +124,112 @@ class VoxelGrid {
     std::uint64_t points_dropped_range = 0;  // beyond the packed key range
     std::uint64_t points_dropped_nonfinite = 0;
   };
+  // The samples of one block: voxels()[first, first + count).
+  struct BlockRange {
+    std::uint32_t first = 0;
+    std::uint32_t count = 0;
+  };
 
   void init(Arena& arena, double voxel_size_m, std::size_t max_voxels);
   void clear() noexcept;
 
-  void add_point(const Eigen::Vector3f& point_m) noexcept { add_or_remove(point_m, 1); }
+  void add_point(const Eigen::Vector3f& point_m) noexcept { accumulate(locate(point_m), 1); }
   // Takes a point added before back out (its voxel stays, possibly empty).
-  void remove_point(const Eigen::Vector3f& point_m) noexcept { add_or_remove(point_m, -1); }
-
-  // Classifies every voxel by the moments of its 3 x 3 x 3 neighbourhood, visiting them in
-  // `order` (indices into voxels(); an order that keeps neighbours together keeps the
-  // lookups in cache).
-  void estimate_shapes(std::span<const std::uint32_t> order, std::uint32_t min_points,
-                       double max_planarity_ratio, double max_line_ratio) noexcept;
+  void remove_point(const Eigen::Vector3f& point_m) noexcept { accumulate(locate(point_m), -1); }
   // Adds many points, fetching the slots of points a few ahead while it works on this one.
   void add_points(std::span<const Eigen::Vector3f> points_m) noexcept;
 
-  // The voxels live in the slots of an open-addressing table (a voxel's id is its slot), so a
-  // lookup and the voxel it finds are one memory access, and the voxels of one 4 x 4 x 4
-  // block lie side by side. occupied() lists the ids in the order the voxels were created.
-  [[nodiscard]] std::span<Voxel> slots() noexcept { return slots_; }
-  [[nodiscard]] std::span<const Voxel> slots() const noexcept { return slots_; }
-  [[nodiscard]] std::span<const std::uint32_t> occupied() const noexcept {
-    return occupied_.first(count_);
-  }
+  // Lays the voxels that hold points out densely, block by block (blocks in Z-order of their
+  // coordinates, cells in bit order): a block's samples are one range, and a
+  // neighbour is found by a bit count instead of a table lookup. Call after adding points
+  // and before reading voxels(), blocks or shapes.
+  void compact() noexcept;
+  // Classifies every sample by the moments of its 3 x 3 x 3 neighbourhood (after compact()).
+  void estimate_shapes(std::uint32_t min_points, double max_planarity_ratio,
+                       double max_line_ratio) noexcept;
+
+  // The samples of the last compact(); an id is an index into this span.
+  [[nodiscard]] std::span<Voxel> voxels() noexcept { return voxels_.first(count_); }
+  [[nodiscard]] std::span<const Voxel> voxels() const noexcept { return voxels_.first(count_); }
   [[nodiscard]] std::size_t size() const noexcept { return count_; }
+  // Blocks that were touched, in the order they were first touched (after compact()).
+  [[nodiscard]] std::size_t block_count() const noexcept { return block_count_; }
+  [[nodiscard]] CellKey block_key(std::size_t block) const noexcept { return block_keys_[block]; }
+  [[nodiscard]] BlockRange block_range(std::size_t block) const noexcept;
+  // The index of the block with `block_key` (block coordinates), or CellIndex::kAbsent.
+  [[nodiscard]] std::uint32_t find_block(CellKey block_key) const noexcept {
+    return block_index_.find(block_key);
+  }
+
   [[nodiscard]] double voxel_size_m() const noexcept { return voxel_size_m_; }
   [[nodiscard]] Eigen::Vector3f centre_m(CellKey key) const noexcept;
   // The mean of a voxel's points.
-  [[nodiscard]] Eigen::Vector3f centroid_m(const Voxel& voxel) const noexcept;
+  [[nodiscard]] Eigen::Vector3f centroid_m(const VoxelSums& voxel) const noexcept;
   // A voxel's moments in double, relative to `origin_m`.
-  [[nodiscard]] PointMoments moments(const Voxel& voxel,
+  [[nodiscard]] PointMoments moments(const VoxelSums& voxel,
                                      const Eigen::Vector3d& origin_m) const noexcept;
   [[nodiscard]] const Counters& counters() const noexcept { return counters_; }
   [[nodiscard]] std::size_t memory_bytes() const noexcept {
-    return slots_.size_bytes() + occupied_.size_bytes() + block_index_.memory_bytes() +
-           block_masks_.size_bytes();
+    return table_.size_bytes() + voxels_.size_bytes() + block_index_.memory_bytes() +
+           block_keys_.size_bytes() + block_masks_.size_bytes() + live_masks_.size_bytes() +
+           block_first_.size_bytes() + block_order_.size_bytes();
   }
+  // Bytes init() takes from the arena for `max_voxels`.
+  [[nodiscard]] static std::size_t arena_bytes(std::size_t max_voxels) noexcept;
 
  private:
-  void add_or_remove(const Eigen::Vector3f& point_m, int sign) noexcept;
-  // The id of `key`'s voxel, or CellIndex::kAbsent.
+  // A point's cell and its offset from the cell's centre in cell units, or why it has none.
+  struct LocatedPoint {
+    enum class Status : std::uint8_t { kOk, kNonFinite, kOutOfRange };
+    Status status = Status::kOk;
+    CellKey key = 0;
+    Eigen::Vector3f offset = Eigen::Vector3f::Zero();  // in [-0.5, 0.5) per axis
+  };
+  [[nodiscard]] LocatedPoint locate(const Eigen::Vector3f& point_m) const noexcept;
+  // Adds (sign 1) or takes out (-1) a located point's moments; counts the ones it cannot.
+  void accumulate(const LocatedPoint& point, int sign) noexcept;
+  // The slot of `key`'s voxel, or CellIndex::kAbsent.
   [[nodiscard]] std::uint32_t find(CellKey key) const noexcept;
-  // The id of `key`'s voxel, created when new; kAbsent when the grid is full.
+  // The slot of `key`'s voxel, created when new; kAbsent when the grid is full.
   [[nodiscard]] std::uint32_t find_or_create(CellKey key) noexcept;
   [[nodiscard]] std::size_t home_slot(CellKey key) const noexcept {
     return block_local_home_slot(key, shift_, mask_);
   }
-  [[nodiscard]] std::uint64_t block_mask(std::int64_t bx, std::int64_t by,
-                                         std::int64_t bz) const noexcept;
   void mark_in_block(std::int64_t x, std::int64_t y, std::int64_t z) noexcept;
+  // The live masks and first sample ids of the 27 blocks around one block (index
+  // (dx + 1) * 9 + (dy + 1) * 3 + dz + 1): a neighbour's id is a bit count away.
+  struct BlockNeighbourhood {
+    std::array<std::uint64_t, 27> live_masks{};
+    std::array<std::uint32_t, 27> first{};
+  };
+  void load_neighbourhood(std::int64_t bx, std::int64_t by, std::int64_t bz, std::uint64_t live,
+                          BlockNeighbourhood& out) const noexcept;
+  void estimate_shape(Voxel& voxel, const BlockNeighbourhood& around, float planar_ratio_sq,
+                      float line_ratio_sq, float min_points) const noexcept;
 
   double voxel_size_m_ = 0.0;
   float inverse_size_ = 0.0f;
   float size_m_ = 0.0f;
   CellKey last_key_ = 0;
   std::uint32_t last_index_ = CellIndex::kAbsent;
-  std::span<Voxel> slots_;
-  std::span<std::uint32_t> occupied_;
-  // Which of the 64 cells of each 4 x 4 x 4 block hold a voxel: most of a voxel's 26
-  // neighbours are empty, and a bit test is far cheaper than a failed table lookup.
-  CellIndex block_index_;
-  std::span<std::uint64_t> block_masks_;
-  std::size_t block_count_ = 0;
+  std::span<VoxelSums> table_;             // open addressing, linear probing, at most half full
+  std::span<std::uint32_t> slots_in_use_;  // the table's used slots, newest last
+  std::size_t slot_count_ = 0;
+  std::span<Voxel> voxels_;  // dense, block by block (compact())
   std::size_t count_ = 0;
+  // Blocks: their keys in first-touch order, which cells were touched, which hold points at
+  // the last compact(), and the id of their first sample.
+  CellIndex block_index_;
+  std::span<CellKey> block_keys_;
+  std::span<std::uint64_t> block_masks_;
+  std::span<std::uint64_t> live_masks_;
+  std::span<std::uint32_t> block_first_;
+  struct BlockOrder {
+    std::uint64_t code = 0;  // Z-order of the block's coordinates
+    std::uint32_t block = 0;
+  };
+  std::span<BlockOrder> block_order_;  // blocks as compact() laid them out
+  std::size_t block_count_ = 0;
   std::uint32_t shift_ = 64;
   std::size_t mask_ = 0;
   Counters counters_;

@@ -47,6 +47,11 @@ struct PointCloud {
 // starts with the file name.
 [[nodiscard]] PointCloud read_point_cloud(const std::filesystem::path& path);
 
+// Writes points (relative to origin_m) as a binary little-endian PLY of x, y, z: floats, or
+// doubles with the origin added back when it is not zero. Throws CloudFileError.
+void write_ply(const std::filesystem::path& path, std::span<const Eigen::Vector3f> points_m,
+               const Eigen::Vector3d& origin_m = Eigen::Vector3d::Zero());
+
 // 3DTK .3d ("uos") scans give centimetres in a left-handed frame with y up; a range of this
 // much or more is the scanner's no-return reading.
 inline constexpr double kUosNoReturnRangeM = 32.76;

@@ -15,8 +15,13 @@
 namespace blockmap::hal::sim {
 
 struct PoseNoise {
-  double angle_rad = 0.0;  // standard deviation per axis, per scan
-  double shift_m = 0.0;    // standard deviation per axis, per scan
+  double angle_rad = 0.0;  // standard deviation per axis
+  double shift_m = 0.0;    // standard deviation per axis
+  // 0: every scan of every laser gets its own independent error. > 0: the robot's pose error
+  // drifts as a first-order Gauss-Markov process with this time constant, shared by both
+  // lasers; a localisation filter's error changes with odometry and GPS, not from one scan to
+  // the next 13 ms later.
+  double correlation_s = 0.0;
 };
 
 class TruthCloudSink : public SimSink {
@@ -29,13 +34,16 @@ class TruthCloudSink : public SimSink {
   [[nodiscard]] std::vector<Eigen::Vector3f>& points() noexcept { return points_; }
 
  private:
-  void draw_scan_error();
+  void draw_scan_error(TimestampNs stamp_ns);
 
   PoseNoise noise_;
   SimRandom random_;
   std::vector<Eigen::Vector3f> points_;
   std::size_t last_laser_ = static_cast<std::size_t>(-1);
   std::uint32_t last_scan_ = 0;
+  Eigen::Matrix<double, 6, 1> error_ = Eigen::Matrix<double, 6, 1>::Zero();  // angles, shift
+  bool drifting_ = false;  // error_ holds a drawn state (correlated noise)
+  TimestampNs error_stamp_ns_ = 0;
   Eigen::Matrix3d rotation_ = Eigen::Matrix3d::Identity();
   Eigen::Vector3d shift_m_ = Eigen::Vector3d::Zero();
 };
