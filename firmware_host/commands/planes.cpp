@@ -1,6 +1,7 @@
-// `blockmap planes CLOUD [--config FILE] [--out FILE]`: the plane list (docs: ARCHITECTURE.md
-// 4.1) of a point cloud file. "seconds" is the detection alone: voxelizing, Hough transform,
-// refinement and merging, not reading the file.
+// `blockmap planes CLOUD [--config FILE] [--out FILE] [--svg FILE [--top]]`: the plane list
+// (docs: ARCHITECTURE.md 4.1) of a point cloud file, and optionally a picture of the planes
+// over the points. "seconds" is the detection alone: voxelizing, Hough transform, refinement
+// and merging, not reading the file.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
@@ -18,6 +19,7 @@
 #include "blockmap/planes/plane_detector.hpp"
 #include "cli.hpp"
 #include "commands/commands.hpp"
+#include "outputs/plane_picture.hpp"
 
 namespace blockmap::cli {
 namespace {
@@ -26,7 +28,29 @@ struct PlanesOptions {
   std::string cloud;
   std::string config;
   std::string out;
+  std::string svg;
+  bool top_view = false;
 };
+
+// The picture, when asked for; false (and one line on err) when it cannot be written.
+bool write_picture(const PlanesOptions& options, const hal::cloud::PointCloud& cloud,
+                   std::span<const msg::PlanePatch> planes, std::ostream& err) {
+  if (options.svg.empty()) {
+    return true;
+  }
+  PictureView view;
+  if (options.top_view) {
+    view.azimuth_deg = -90.0;
+    view.elevation_deg = 90.0;
+  }
+  std::ofstream file(options.svg);
+  write_plane_picture(file, cloud.points_m, planes, view);
+  if (!file) {
+    err << "blockmap: " << options.svg << ": cannot write\n";
+    return false;
+  }
+  return true;
+}
 
 // Tenths of millimetres for positions, millionths for directions: what the numbers mean, no
 // more. Dividing by the inverse gives the double nearest the decimal, which prints short.
@@ -101,6 +125,9 @@ int detect_planes(const PlanesOptions& options, std::ostream& out, std::ostream&
     err << "planes: warning: " << stats.points_dropped
         << " points found no sample (raise max_samples)\n";
   }
+  if (!write_picture(options, cloud, planes, err)) {
+    return kExitFailure;
+  }
   if (options.out.empty()) {
     out << document.dump() << '\n';
     return kExitOk;
@@ -125,6 +152,9 @@ Command add_planes_command(CLI::App& app) {
   command->add_option("--config", options->config,
                       "a TOML file whose [planes] table sets the detector (config/planes.toml)");
   command->add_option("--out", options->out, "write the plane list here instead of stdout");
+  command->add_option("--svg", options->svg,
+                      "also draw the planes over the points into this SVG file (an oblique view)");
+  command->add_flag("--top", options->top_view, "draw the SVG from straight above");
   return {command, [options](std::ostream& out, std::ostream& err) {
             try {
               return detect_planes(*options, out, err);

@@ -1,6 +1,8 @@
-// `blockmap simulate --world NAME [--robot NAME] [--seed N] --out DIR`: a recorded run of the
-// simulated robot (docs/ARCHITECTURE.md 4.3-4.5): the devices' raw logs, exactly as the robot's
-// logger would write them, and the ground truth. The same seed gives the same bytes.
+// `blockmap simulate --world NAME [--robot NAME] [--seed N] --out DIR [--cloud FILE.ply]`: a
+// recorded run of the simulated robot (docs/ARCHITECTURE.md 4.3-4.5): the devices' raw logs,
+// exactly as the robot's logger would write them, and the ground truth. The same seed gives the
+// same bytes. --cloud also writes every laser return along the true trajectory (the cloud a
+// perfect localisation would give) as a PLY file, for `blockmap planes` and other tools.
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdint>
@@ -8,10 +10,12 @@
 #include <ostream>
 #include <string>
 
+#include "blockmap/hal/cloud/point_cloud_file.hpp"
 #include "blockmap/hal/config/config_error.hpp"
 #include "blockmap/hal/sim/robot.hpp"
 #include "blockmap/hal/sim/run_recorder.hpp"
 #include "blockmap/hal/sim/simulation.hpp"
+#include "blockmap/hal/sim/truth_cloud.hpp"
 #include "blockmap/hal/sim/world.hpp"
 #include "cli.hpp"
 #include "commands/commands.hpp"
@@ -25,6 +29,36 @@ struct SimulateOptions {
   std::uint64_t seed = 1;
   double duration_s = 0.0;
   std::string out;
+  std::string cloud;
+};
+
+// The recorder's events, and the beams also to the truth cloud.
+class RecorderAndCloud : public hal::sim::SimSink {
+ public:
+  RecorderAndCloud(hal::sim::SimSink& recorder, hal::sim::SimSink* cloud)
+      : recorder_(recorder), cloud_(cloud) {}
+  void on_can_frame(TimestampNs stamp_ns, const hal::CanFrame& frame) override {
+    recorder_.on_can_frame(stamp_ns, frame);
+  }
+  void on_serial(std::size_t device, TimestampNs stamp_ns,
+                 hal::protocol::byte_log::Direction direction,
+                 std::span<const std::uint8_t> bytes) override {
+    recorder_.on_serial(device, stamp_ns, direction, bytes);
+  }
+  void on_truth_state(TimestampNs stamp_ns, const hal::sim::RobotState& state) override {
+    recorder_.on_truth_state(stamp_ns, state);
+  }
+  void on_beam(std::size_t laser, const hal::sim::BeamTruth& beam) override {
+    recorder_.on_beam(laser, beam);
+    if (cloud_ != nullptr) {
+      cloud_->on_beam(laser, beam);
+    }
+  }
+  void on_gps_epoch(const hal::sim::GpsTruth& truth) override { recorder_.on_gps_epoch(truth); }
+
+ private:
+  hal::sim::SimSink& recorder_;
+  hal::sim::SimSink* cloud_;
 };
 
 int simulate(const SimulateOptions& options, std::ostream& err) {
@@ -43,8 +77,13 @@ int simulate(const SimulateOptions& options, std::ostream& err) {
   hal::sim::RunRecorder recorder(options.out, simulation);
   recorder.write_text_file("world.toml", world_text);
   recorder.write_text_file("robot.toml", robot_text);
-  simulation.run(recorder);
+  hal::sim::TruthCloudSink cloud;
+  RecorderAndCloud sink(recorder, options.cloud.empty() ? nullptr : &cloud);
+  simulation.run(sink);
   recorder.finish(options.seed);
+  if (!options.cloud.empty()) {
+    hal::cloud::write_ply(options.cloud, cloud.points());
+  }
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
 
@@ -90,6 +129,8 @@ Command add_simulate_command(CLI::App& app) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   command->add_option("--out", options->out, "the folder to write the logs into")->required();
+  command->add_option("--cloud", options->cloud,
+                      "also write every laser return along the true trajectory as a PLY file");
   return {command, [options](std::ostream& /*out*/, std::ostream& err) {
             try {
               return simulate(*options, err);

@@ -3,9 +3,11 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
@@ -94,6 +96,54 @@ TEST_F(PlanesCommand, WritesToOutAndReadsAConfig) {
   EXPECT_TRUE(result.out.empty());
   std::ifstream file(out);
   EXPECT_EQ(nlohmann::json::parse(file).at("planes").size(), 2u);
+}
+
+std::size_t count_of(const std::string& text, const std::string& part) {
+  std::size_t count = 0;
+  for (std::size_t at = text.find(part); at != std::string::npos; at = text.find(part, at + 1)) {
+    ++count;
+  }
+  return count;
+}
+
+TEST_F(PlanesCommand, DrawsThePlanesOverThePointsAsSvg) {
+  const fs::path picture = folder_ / "planes.svg";
+  const Result result = run_cli({"planes", write_scene().string(), "--svg", picture.string()});
+  ASSERT_EQ(result.status, 0) << result.err;
+  std::ifstream file(picture);
+  const std::string svg((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(svg.rfind("<svg xmlns='http://www.w3.org/2000/svg'", 0), 0u);
+  EXPECT_EQ(svg.substr(svg.size() - 7), "</svg>\n");
+  // One polygon per plane of the list, labelled by kind; the points as dots.
+  EXPECT_EQ(count_of(svg, "<polygon"), nlohmann::json::parse(result.out).at("planes").size());
+  EXPECT_EQ(count_of(svg, "<polygon class='wall'"), 1u);
+  EXPECT_EQ(count_of(svg, "<polygon class='ground'"), 1u);
+  EXPECT_GE(count_of(svg, "h1"), 20000u);  // every point of this 30,000-point budget
+  // From above, the wall (x = 3, seen with +x to the right) is a line: its polygon's screen x
+  // coordinates are all the same.
+  const Result top =
+      run_cli({"planes", write_scene().string(), "--svg", picture.string(), "--top"});
+  ASSERT_EQ(top.status, 0) << top.err;
+  std::ifstream top_file(picture);
+  const std::string top_svg((std::istreambuf_iterator<char>(top_file)),
+                            std::istreambuf_iterator<char>());
+  const std::size_t wall = top_svg.find("<polygon class='wall'");
+  ASSERT_NE(wall, std::string::npos);
+  const std::size_t from = top_svg.find("points='", wall) + 8;
+  std::istringstream pairs(top_svg.substr(from, top_svg.find('\'', from) - from));
+  std::vector<double> xs;
+  double x = 0.0;
+  double y = 0.0;
+  char comma = 0;
+  while (pairs >> x >> comma >> y) {
+    xs.push_back(x);
+  }
+  ASSERT_GE(xs.size(), 2u);
+  EXPECT_LT(*std::max_element(xs.begin(), xs.end()) - *std::min_element(xs.begin(), xs.end()), 0.5);
+  EXPECT_EQ(
+      run_cli({"planes", write_scene().string(), "--svg", (folder_ / "missing" / "p.svg").string()})
+          .status,
+      1);
 }
 
 TEST_F(PlanesCommand, TheShippedConfigurationIsTheDefault) {

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "blockmap/hal/cloud/point_cloud_file.hpp"
 #include "blockmap/hal/geodesy.hpp"
 #include "cli.hpp"
 #include "cli_runner.hpp"
@@ -103,6 +104,25 @@ TEST_F(SimulateCommand, TheSameSeedWritesTheSameBytes) {
                            "gps.nmea", "truth.json"}) {
     EXPECT_EQ(read_file(folder_ / name), read_file(again / name)) << name;
   }
+  fs::remove_all(again);
+}
+
+TEST_F(SimulateCommand, TheCloudOptionWritesEveryReturnAndLeavesTheLogsAlone) {
+  const fs::path again = folder_.string() + "_cloud";
+  const fs::path cloud = again / "cloud.ply";
+  fs::create_directories(again);
+  ASSERT_EQ(run_cli({"simulate", "--world", "usc_block", "--seed", "3", "--duration-s", "4",
+                     "--out", again.string(), "--cloud", cloud.string()})
+                .status,
+            kExitOk);
+  EXPECT_EQ(read_file(folder_ / "laser_vertical.bytelog"),
+            read_file(again / "laser_vertical.bytelog"));
+  const hal::cloud::PointCloud points = hal::cloud::read_point_cloud(cloud);
+  EXPECT_GT(points.points_m.size(), 10000u);  // two lasers, 75 scans a second, 4 s
+  // The cloud is one a plane detector reads: the street's ground is in it.
+  const Result planes = run_cli({"planes", cloud.string()});
+  ASSERT_EQ(planes.status, kExitOk) << planes.err;
+  EXPECT_NE(planes.out.find("\"kind\":\"ground\""), std::string::npos);
   fs::remove_all(again);
 }
 
