@@ -289,8 +289,9 @@ void PlaneDetector::set_corners(const Eigen::Vector3d& normal, double d_m, std::
 
 std::size_t PlaneDetector::memory_bytes() const noexcept {
   return orientations_.memory_bytes() + voxels_.memory_bytes() + sections_.memory_bytes() +
-         accumulator_.memory_bytes() + merger_.memory_bytes() + section_samples_.size_bytes() +
-         section_positions_.size_bytes() + inliers_.size_bytes() + peaks_.size_bytes();
+         accumulator_.memory_bytes() + merger_.memory_bytes() + block_free_points_.size_bytes() +
+         section_samples_.size_bytes() + section_positions_.size_bytes() + inliers_.size_bytes() +
+         peaks_.size_bytes();
 }
 
 }  // namespace blockmap::planes
