@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <ostream>
 #include <string>
+#include <vector>
 
 #include "blockmap/core/arena.hpp"
 #include "blockmap/hal/cloud/point_cloud_file.hpp"
@@ -85,8 +86,14 @@ int detect_planes(const PlanesOptions& options, std::ostream& out, std::ostream&
     config = hal::config::load_planes_config(options.config);
   }
   const hal::cloud::PointCloud cloud = hal::cloud::read_point_cloud(options.cloud);
-  // Capacities no larger than this cloud needs: a small cloud takes a small arena.
-  config.max_samples = std::clamp<std::size_t>(cloud.points_m.size(), 1024, config.max_samples);
+  // Capacities no larger than this cloud needs: its samples are counted before the arena is
+  // made (a city scan has about one sample per ten points).
+  std::size_t samples = 0;
+  {
+    std::vector<planes::CellKey> keys(cloud.points_m.size());
+    samples = planes::VoxelGrid::count_voxels(cloud.points_m, config.sample_size_m, keys);
+  }
+  config.max_samples = std::clamp<std::size_t>(samples, 1024, config.max_samples);
   config.max_patches =
       std::max(config.max_planes, std::min(config.max_patches, config.max_samples));
 

@@ -55,9 +55,11 @@ planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view
       static_cast<std::uint32_t>(capacity(t, "min_points_for_shape", c.min_points_for_shape));
   c.max_planarity_ratio = t.number_or("max_planarity_ratio", c.max_planarity_ratio);
   c.max_line_ratio = t.number_or("max_line_ratio", c.max_line_ratio);
+  c.coarse_second_look = t.boolean_or("coarse_second_look", c.coarse_second_look);
   c.min_votes = t.number_or("min_votes", c.min_votes);
   c.max_planes_per_section = capacity(t, "max_planes_per_section", c.max_planes_per_section);
   c.inlier_distance_m = t.number_or("inlier_distance_m", c.inlier_distance_m);
+  c.max_inlier_distance_m = t.number_or("max_inlier_distance_m", c.max_inlier_distance_m);
   c.inlier_angle_deg = t.number_or("inlier_angle_deg", c.inlier_angle_deg);
   c.refine_iterations =
       static_cast<std::uint32_t>(capacity(t, "refine_iterations", c.refine_iterations));

@@ -14,6 +14,10 @@ namespace blockmap::planes {
 namespace {
 
 constexpr double kDegToRad = std::numbers::pi / 180.0;
+// The inlier band: this many times the fit's RMS distance, grown in at most this many extra
+// refinement steps.
+constexpr double kBandPerRmse = 3.0;
+constexpr std::uint32_t kMaxBandSteps = 6;
 
 std::uint32_t whole_ratio(double a, double b) {
   return static_cast<std::uint32_t>(std::lround(a / b));
@@ -103,7 +107,7 @@ std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
   voxels_.compact();
   sections_.build(voxels_);
   voxels_.estimate_shapes(config_.min_points_for_shape, config_.max_planarity_ratio,
-                          config_.max_line_ratio);
+                          config_.max_line_ratio, config_.coarse_second_look);
   std::fill_n(block_free_points_.begin(), voxels_.block_count(), 0U);
   for (Voxel& voxel : voxels_.voxels()) {
     voxel.owner = -1;
@@ -209,24 +213,17 @@ bool PlaneDetector::refine(const HoughPeak& peak, const Eigen::Vector3f& section
   auto d_m = static_cast<double>(peak.d_m);  // relative to the section centre
   PointMoments moments;
   std::size_t inliers = 0;
-  for (std::uint32_t iteration = 0;
-       iteration < std::max<std::uint32_t>(config_.refine_iterations, 1); ++iteration) {
-    const Eigen::Vector3f n = normal.cast<float>();
-    const auto d = static_cast<float>(d_m);
-    moments = PointMoments{};
-    inliers = 0;
-    for (std::size_t i = 0; i < sample_count; ++i) {
-      const Voxel& voxel = voxels[section_samples_[i]];
-      // Scattered samples (foliage, corners where two walls meet) would pull the fit round.
-      if (voxel.owner >= 0 || voxel.point_count == 0 || voxel.shape == LocalShape::kScattered ||
-          std::abs(n.dot(section_positions_[i]) - d) >
-              static_cast<float>(config_.inlier_distance_m) ||
-          (voxel.shape == LocalShape::kPlanar && std::abs(voxel.axis.dot(n)) < cos_inlier_angle_)) {
-        continue;
-      }
-      moments.merge(voxels_.moments(voxel, centre));
-      inliers_[inliers++] = static_cast<std::uint32_t>(i);
-    }
+  // The inlier band follows the plane's own noise: a wall blurred by pose errors is a slab
+  // wider than inlier_distance_m, and a band narrower than it leaves the slab's shoulders
+  // to come back as parallel planes. Three times the RMS distance holds a slab's points; the
+  // band grows from inlier_distance_m, at most to max_inlier_distance_m.
+  double band_m = config_.inlier_distance_m;
+  const std::uint32_t iterations = std::max<std::uint32_t>(config_.refine_iterations, 1);
+  for (std::uint32_t iteration = 0; iteration < iterations + kMaxBandSteps; ++iteration) {
+    // Once the band has grown, the plane is a noisy slab: its scattered samples are its points.
+    const bool take_scattered = band_m > config_.inlier_distance_m;
+    select_inliers(normal.cast<float>(), static_cast<float>(d_m), static_cast<float>(band_m),
+                   take_scattered, centre, sample_count, moments, inliers);
     if (moments.weight < config_.min_votes) {
       return false;
     }
@@ -237,6 +234,13 @@ bool PlaneDetector::refine(const HoughPeak& peak, const Eigen::Vector3f& section
     }
     normal = fit.normal_unit;
     d_m = fit.d_m;
+    const double next_band_m = std::clamp(kBandPerRmse * fit.rmse_m, config_.inlier_distance_m,
+                                          config_.max_inlier_distance_m);
+    const bool band_settled = next_band_m < band_m * 1.1;
+    band_m = std::max(band_m, next_band_m);
+    if (iteration + 1 >= iterations && band_settled) {
+      break;
+    }
   }
   if (!orientation_searched(normal)) {
     return false;
@@ -255,6 +259,28 @@ bool PlaneDetector::refine(const HoughPeak& peak, const Eigen::Vector3f& section
     corner += section_centre_m;
   }
   return true;
+}
+
+void PlaneDetector::select_inliers(const Eigen::Vector3f& normal, float d_m, float band_m,
+                                   bool take_scattered, const Eigen::Vector3d& centre_m,
+                                   std::size_t sample_count, PointMoments& moments,
+                                   std::size_t& inliers) noexcept {
+  const std::span<const Voxel> voxels = voxels_.voxels();
+  moments = PointMoments{};
+  inliers = 0;
+  for (std::size_t i = 0; i < sample_count; ++i) {
+    const Voxel& voxel = voxels[section_samples_[i]];
+    // Scattered samples (foliage, corners where two walls meet) would pull the fit round.
+    if (voxel.owner >= 0 || voxel.point_count == 0 ||
+        (voxel.shape == LocalShape::kScattered && !take_scattered) ||
+        std::abs(normal.dot(section_positions_[i]) - d_m) > band_m ||
+        (voxel.shape == LocalShape::kPlanar &&
+         std::abs(voxel.axis.dot(normal)) < cos_inlier_angle_)) {
+      continue;
+    }
+    moments.merge(voxels_.moments(voxel, centre_m));
+    inliers_[inliers++] = static_cast<std::uint32_t>(i);
+  }
 }
 
 bool PlaneDetector::orientation_searched(const Eigen::Vector3d& normal) const noexcept {

@@ -13,6 +13,13 @@
 namespace blockmap::planes {
 namespace {
 
+// A small plane inside a big plane's noise slab (within_noise_slab): at most this share of
+// the big plane's points, at most this far off its direction, and within
+// this many of its RMS distances (plus merge_distance_m).
+constexpr double kSlabShareMax = 0.25;
+constexpr double kSlabMaxAngleDeg = 15.0;
+constexpr double kSlabPerRmse = 3.0;
+
 double cos_deg(double degrees) {
   return std::cos(degrees * std::numbers::pi / 180.0);
 }
@@ -171,11 +178,13 @@ bool PlaneMerger::can_merge(const Candidate& big, const Candidate& small) noexce
     return false;
   }
   const Eigen::Vector3d& n = big.fit.normal_unit;
-  if (std::abs(n.dot(small.fit.normal_unit)) < cos_deg(config_.merge_angle_deg)) {
+  const bool inside_slab = within_noise_slab(big, small);
+  if (!inside_slab && std::abs(n.dot(small.fit.normal_unit)) < cos_deg(config_.merge_angle_deg)) {
     return false;
   }
   // The smaller plane's centroid lies on the bigger plane.
-  if (std::abs(n.dot(small.fit.centroid_m) - big.fit.d_m) > config_.merge_distance_m) {
+  if (!inside_slab &&
+      std::abs(n.dot(small.fit.centroid_m) - big.fit.d_m) > config_.merge_distance_m) {
     return false;
   }
   const std::pair<Eigen::Vector3d, Eigen::Vector3d> basis = plane_basis(n);
@@ -194,6 +203,23 @@ bool PlaneMerger::can_merge(const Candidate& big, const Candidate& small) noexce
   // to a fraction of its own size: occlusions (trees before a wall) leave holes that scale
   // with the wall, not with a fixed distance.
   return convex_polygon_gap(a, b) <= reach_m;
+}
+
+bool PlaneMerger::within_noise_slab(const Candidate& big, const Candidate& small) const noexcept {
+  // A wall blurred by pose errors is a slab a few RMS distances thick; the detector takes
+  // its core, and the thin tails on either side come back as small planes, parallel or a
+  // few degrees off, that lie wholly inside the slab. They are points of the big plane.
+  if (small.moments.weight > kSlabShareMax * big.moments.weight ||
+      std::abs(big.fit.normal_unit.dot(small.fit.normal_unit)) < cos_deg(kSlabMaxAngleDeg)) {
+    return false;
+  }
+  const double slab_m = kSlabPerRmse * big.fit.rmse_m + config_.merge_distance_m;
+  for (std::size_t i = 0; i < small.polygon_size; ++i) {
+    if (std::abs(big.fit.normal_unit.dot(small.polygon_m[i]) - big.fit.d_m) > slab_m) {
+      return false;
+    }
+  }
+  return small.polygon_size > 0;
 }
 
 void PlaneMerger::absorb(Candidate& big, const Candidate& small) noexcept {

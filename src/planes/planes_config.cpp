@@ -48,6 +48,9 @@ std::string validate(const PlanesConfig& c) {
   if (c.max_planes_per_section < 1 || c.max_planes_per_section > 64) {
     return "max_planes_per_section must be in [1, 64]";
   }
+  if (!(c.max_inlier_distance_m >= c.inlier_distance_m)) {
+    return "max_inlier_distance_m must be at least inlier_distance_m";
+  }
   if (!(c.inlier_distance_m > 0.0) || !(c.inlier_angle_deg > 0.0 && c.inlier_angle_deg <= 90.0)) {
     return "inlier_distance_m must be > 0 and inlier_angle_deg in (0, 90]";
   }

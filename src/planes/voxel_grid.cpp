@@ -86,6 +86,8 @@ void VoxelGrid::init(Arena& arena, double voxel_size_m, std::size_t max_voxels) 
   live_masks_ = arena.allocate_array<std::uint64_t>(max_voxels, "planes.voxel_grid");
   block_first_ = arena.allocate_array<std::uint32_t>(max_voxels, "planes.voxel_grid");
   block_order_ = arena.allocate_array<BlockOrder>(max_voxels, "planes.voxel_grid");
+  block_sums_ = arena.allocate_array<BlockSums>(max_voxels, "planes.voxel_grid");
+  block_summed_ = arena.allocate_array<std::uint8_t>(max_voxels, "planes.voxel_grid");
   slot_count_ = 0;
   clear();
 }
@@ -95,8 +97,27 @@ std::size_t VoxelGrid::arena_bytes(std::size_t max_voxels) noexcept {
   constexpr std::size_t kAlignment = 64;  // per allocation, at most
   return slots * sizeof(VoxelSums) +
          max_voxels * (sizeof(std::uint32_t) + sizeof(Voxel) + sizeof(CellKey) +
-                       2 * sizeof(std::uint64_t) + sizeof(std::uint32_t) + sizeof(BlockOrder)) +
-         CellIndex::arena_bytes(max_voxels) + 8 * kAlignment;
+                       2 * sizeof(std::uint64_t) + sizeof(std::uint32_t) + sizeof(BlockOrder) +
+                       sizeof(BlockSums) + sizeof(std::uint8_t)) +
+         CellIndex::arena_bytes(max_voxels) + 10 * kAlignment;
+}
+
+std::size_t VoxelGrid::count_voxels(std::span<const Eigen::Vector3f> points_m, double voxel_size_m,
+                                    std::span<CellKey> scratch) noexcept {
+  BLOCKMAP_CHECK_MSG(scratch.size() >= points_m.size(), "count_voxels needs a key per point");
+  // The grid's own arithmetic: a point on a cell border falls where add_points puts it.
+  const auto inverse = static_cast<float>(1.0 / voxel_size_m);
+  std::size_t keys = 0;
+  for (const Eigen::Vector3f& p : points_m) {
+    const LocatedPoint located = locate(p, inverse);
+    if (located.status == LocatedPoint::Status::kOk) {
+      scratch[keys++] = located.key;
+    }
+  }
+  const auto first = scratch.begin();
+  const auto last = first + static_cast<std::ptrdiff_t>(keys);
+  std::sort(first, last);
+  return static_cast<std::size_t>(std::unique(first, last) - first);
 }
 
 void VoxelGrid::clear() noexcept {
@@ -215,7 +236,35 @@ void VoxelGrid::compact() noexcept {
       live |= std::uint64_t{1} << bit;
     }
     live_masks_[block] = live;
+    block_summed_[block] = 0;  // summed when a coarse look first needs it
   }
+}
+
+VoxelGrid::BlockSums VoxelGrid::sum_block(std::uint32_t block) const noexcept {
+  BlockSums sums;
+  const std::uint64_t live = live_masks_[block];
+  std::uint32_t id = block_first_[block];
+  for (std::uint64_t cells = live; cells != 0; cells &= cells - 1, ++id) {
+    const auto bit = static_cast<std::uint32_t>(std::countr_zero(cells));
+    const Voxel& v = voxels_[id];
+    // Parallel axis: from the cell's centre to the block's (2 cells from its low corner).
+    const std::array<float, 3> t = {(static_cast<float>(bit >> 4) - 1.5f) * size_m_,
+                                    (static_cast<float>((bit >> 2) & 3) - 1.5f) * size_m_,
+                                    (static_cast<float>(bit & 3) - 1.5f) * size_m_};
+    const auto w = static_cast<float>(v.point_count);
+    sums.point_count += w;
+    for (std::size_t a = 0; a < 3; ++a) {
+      sums.sum_m[a] += v.sum_m[a] + w * t[a];
+    }
+    std::size_t k = 0;
+    for (std::size_t a = 0; a < 3; ++a) {
+      for (std::size_t b = a; b < 3; ++b, ++k) {
+        sums.sum_outer_m2[k] +=
+            v.sum_outer_m2[k] + v.sum_m[a] * t[b] + t[a] * v.sum_m[b] + w * t[a] * t[b];
+      }
+    }
+  }
+  return sums;
 }
 
 VoxelGrid::BlockRange VoxelGrid::block_range(std::size_t block) const noexcept {
@@ -244,13 +293,14 @@ PointMoments VoxelGrid::moments(const VoxelSums& voxel,
   return local.shifted(centre_m(voxel.key).cast<double>() - origin_m);
 }
 
-VoxelGrid::LocatedPoint VoxelGrid::locate(const Eigen::Vector3f& point_m) const noexcept {
+VoxelGrid::LocatedPoint VoxelGrid::locate(const Eigen::Vector3f& point_m,
+                                          float inverse_size) noexcept {
   LocatedPoint located;
   if (!point_m.allFinite()) {
     located.status = LocatedPoint::Status::kNonFinite;
     return located;
   }
-  const Eigen::Vector3f scaled = point_m * inverse_size_;
+  const Eigen::Vector3f scaled = point_m * inverse_size;
   // Far beyond the key range is checked in float first: a huge float does not fit an int64.
   constexpr auto kFarCells = static_cast<float>(2 * kCellKeyBias);
   const Eigen::Vector3f floored = scaled.array().floor();
@@ -398,7 +448,7 @@ void VoxelGrid::load_neighbourhood(std::int64_t bx, std::int64_t by, std::int64_
 }
 
 void VoxelGrid::estimate_shapes(std::uint32_t min_points, double max_planarity_ratio,
-                                double max_line_ratio) noexcept {
+                                double max_line_ratio, bool coarse_second_look) noexcept {
   const auto planar_ratio_sq = static_cast<float>(max_planarity_ratio * max_planarity_ratio);
   const auto line_ratio_sq = static_cast<float>(max_line_ratio * max_line_ratio);
   BlockNeighbourhood around;
@@ -410,9 +460,25 @@ void VoxelGrid::estimate_shapes(std::uint32_t min_points, double max_planarity_r
     }
     const auto b = unpack_cell(block_keys_[block]);
     load_neighbourhood(b.x(), b.y(), b.z(), live_masks_[block], around);
+    bool any_scattered = false;
     for (std::uint32_t id = range.first; id < range.first + range.count; ++id) {
       estimate_shape(voxels_[id], around, planar_ratio_sq, line_ratio_sq,
                      static_cast<float>(min_points));
+      any_scattered |= voxels_[id].shape == LocalShape::kScattered;
+    }
+    if (!coarse_second_look || !any_scattered) {
+      continue;
+    }
+    const Eigen::Vector3f normal =
+        coarse_normal(b.x(), b.y(), b.z(), planar_ratio_sq, static_cast<float>(min_points));
+    if (normal.isZero()) {
+      continue;
+    }
+    for (std::uint32_t id = range.first; id < range.first + range.count; ++id) {
+      if (voxels_[id].shape == LocalShape::kScattered) {
+        voxels_[id].shape = LocalShape::kPlanar;
+        voxels_[id].axis = normal;
+      }
     }
   }
 }
@@ -493,6 +559,53 @@ Eigen::Vector3d eigenvector_of(const Eigen::Matrix3d& a, double eigenvalue) noex
 }
 
 }  // namespace
+
+Eigen::Vector3f VoxelGrid::coarse_normal(std::int64_t bx, std::int64_t by, std::int64_t bz,
+                                         float planar_ratio_sq, float min_points) noexcept {
+  double n = 0.0;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+  const double block_m = static_cast<double>(size_m_) * kBlockEdge;
+  for (std::int64_t dx = -1; dx <= 1; ++dx) {
+    for (std::int64_t dy = -1; dy <= 1; ++dy) {
+      for (std::int64_t dz = -1; dz <= 1; ++dz) {
+        const std::uint32_t block = block_index_.find(pack_cell(bx + dx, by + dy, bz + dz));
+        if (block == CellIndex::kAbsent) {
+          continue;
+        }
+        if (block_summed_[block] == 0) {
+          block_sums_[block] = sum_block(block);
+          block_summed_[block] = 1;
+        }
+        const BlockSums& b = block_sums_[block];
+        const auto w = static_cast<double>(b.point_count);
+        const Eigen::Vector3d s =
+            Eigen::Vector3f(b.sum_m[0], b.sum_m[1], b.sum_m[2]).cast<double>();
+        const Eigen::Vector3d t = Eigen::Vector3d(static_cast<double>(dx), static_cast<double>(dy),
+                                                  static_cast<double>(dz)) *
+                                  block_m;
+        Eigen::Matrix3f outer_block;
+        outer_block << b.sum_outer_m2[0], b.sum_outer_m2[1], b.sum_outer_m2[2], b.sum_outer_m2[1],
+            b.sum_outer_m2[3], b.sum_outer_m2[4], b.sum_outer_m2[2], b.sum_outer_m2[4],
+            b.sum_outer_m2[5];
+        const Eigen::Matrix3d o = outer_block.cast<double>();
+        n += w;
+        sum += s + w * t;
+        outer += o + s * t.transpose() + t * s.transpose() + w * t * t.transpose();
+      }
+    }
+  }
+  if (n < static_cast<double>(min_points)) {
+    return Eigen::Vector3f::Zero();
+  }
+  const Eigen::Vector3d mean = sum / n;
+  const Eigen::Matrix3d covariance = outer / n - mean * mean.transpose();
+  const Eigen::Vector3d l = symmetric_eigenvalues(covariance).cwiseMax(0.0);  // ascending
+  if (l(0) > static_cast<double>(planar_ratio_sq) * l(1)) {
+    return Eigen::Vector3f::Zero();
+  }
+  return eigenvector_of(covariance, l(0)).cast<float>();
+}
 
 void VoxelGrid::estimate_shape(Voxel& voxel, const BlockNeighbourhood& around,
                                float planar_ratio_sq, float line_ratio_sq,

@@ -68,6 +68,11 @@ class PlaneDetector {
   [[nodiscard]] bool votes(const Voxel& voxel) const noexcept;
   void vote_sample(const Voxel& voxel, const Eigen::Vector3f& position_m) noexcept;
   // PlaneRefiner: the inliers of a peak, refitted by least squares; false when too few.
+  // The free samples of the section within band_m of the plane (planar ones facing it, and
+  // scattered ones only when take_scattered), and their moments about centre_m.
+  void select_inliers(const Eigen::Vector3f& normal, float d_m, float band_m, bool take_scattered,
+                      const Eigen::Vector3d& centre_m, std::size_t sample_count,
+                      PointMoments& moments, std::size_t& inliers) noexcept;
   bool refine(const HoughPeak& peak, const Eigen::Vector3f& section_centre_m,
               std::size_t sample_count, SectionPlane& out) noexcept;
   [[nodiscard]] bool orientation_searched(const Eigen::Vector3d& normal) const noexcept;

@@ -71,6 +71,8 @@ class PlaneMerger {
   // Polygon of `points` (3D, on or near the plane of `fit`) into `candidate`.
   void set_polygon(Candidate& candidate, std::span<const Eigen::Vector3d> points) noexcept;
   [[nodiscard]] bool can_merge(const Candidate& big, const Candidate& small) noexcept;
+  // True when `small` lies wholly inside the noise slab of `big` and is much smaller.
+  [[nodiscard]] bool within_noise_slab(const Candidate& big, const Candidate& small) const noexcept;
   void absorb(Candidate& big, const Candidate& small) noexcept;
   std::size_t merge_candidates() noexcept;
   void label_and_emit() noexcept;

@@ -49,14 +49,20 @@ struct PlanesConfig {
   std::uint32_t min_points_for_shape = 5;
   double max_planarity_ratio = 0.3;  // sqrt(l0 / l1) of a planar neighbourhood, at most
   double max_line_ratio = 0.15;      // sqrt(l1 / l2) of a linear neighbourhood, at most
+  // Scattered samples get a second look at the scale of 12 samples (walls blurred by pose
+  // errors are flat at that scale).
+  bool coarse_second_look = true;
 
   // A cell of the accumulator is a plane when its votes (points, summed over the cell and its
   // two neighbours in d) reach this threshold and no neighbouring cell has more.
   double min_votes = 30.0;
   std::size_t max_planes_per_section = 8;
   // Least-squares refinement: samples within this distance of a peak's plane, and (for
-  // planar samples) with a normal within inlier_angle_deg of it, are its inliers.
+  // planar samples) with a normal within inlier_angle_deg of it, are its inliers. The band
+  // widens to three times the fit's RMS distance when the plane is noisier (pose errors),
+  // up to max_inlier_distance_m.
   double inlier_distance_m = 0.1;
+  double max_inlier_distance_m = 0.4;
   double inlier_angle_deg = 20.0;
   std::uint32_t refine_iterations = 2;
 
