@@ -1,0 +1,194 @@
+// Where the robot is (the seed's section II): a particle filter over (x, y, yaw) in the local
+// ENU frame that moves its particles with wheel odometry and the gyroscope's yaw rate, and
+// weighs them by their distance to each GPS fix.
+//
+// Changes from the paper, each for a reason:
+//  - Fixed size. The particle count and the history are capacities taken from the arena at
+//    init; predict() and update() allocate nothing.
+//  - Bounded history instead of the complete one. Every history_interval_s, the particles'
+//    poses and the index of each one's ancestor at the previous history step go into a ring
+//    of history_steps. The survivors' ancestries give a fixed-lag smoothed path. A step that
+//    leaves the ring is final: its smoothed pose is the weighted mean of the current
+//    particles' ancestors at that step.
+//  - Each particle carries its own distance scale and yaw-rate bias. Tyre pressure makes
+//    the wheels report 1-2 % too much or too little, and the gyroscope drifts; particles with
+//    the wrong ones drift away from GPS and are not resampled.
+//  - The fix's reported quality sets its weight: sigma = user range error x HDOP. DGPS and RTK
+//    fixes count more.
+//  - The paper's rule (particles farther than a distance from the fix are not resampled) is
+//    kept. Recovery: a fix that no particle is near is an outlier and is left out. After
+//    several such fixes in a row, GPS is believed and the particles start over around it.
+//
+// Noise comes from a table of Gaussian quantiles, indexed by a seeded generator: the same
+// inputs and seed give the same trajectory, bit for bit.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+#include <Eigen/Core>
+
+#include "blockmap/core/arena.hpp"
+#include "blockmap/core/random.hpp"
+#include "blockmap/core/time.hpp"
+#include "blockmap/localize/localize_config.hpp"
+
+namespace blockmap::localize {
+
+// A planar pose in the local ENU frame: x east, y north, yaw counter-clockwise from east.
+struct Pose2 {
+  TimestampNs stamp_ns = 0;
+  double x_m = 0.0;
+  double y_m = 0.0;
+  double yaw_rad = 0.0;
+};
+
+// A GPS fix already in the local frame (hal converts geodetic coordinates).
+struct GpsObservation {
+  TimestampNs stamp_ns = 0;  // the fix's epoch on the run's clock
+  double east_m = 0.0;
+  double north_m = 0.0;
+  double hdop = 1.0;
+  bool differential = false;  // DGPS or RTK
+};
+
+enum class GpsOutcome : std::uint8_t {
+  kStarted,    // the first fix: the particles were spread around it
+  kUsed,       // the particles were weighed by it
+  kRejected,   // an outlier, left out
+  kRecovered,  // too many outliers in a row: the particles started over around it
+};
+
+struct LocalizeCounters {
+  std::uint64_t predictions = 0;
+  std::uint64_t fixes_used = 0;
+  std::uint64_t fixes_rejected = 0;
+  std::uint64_t recoveries = 0;
+  std::uint64_t resamplings = 0;
+  std::uint64_t history_steps = 0;
+  std::uint64_t final_poses_dropped = 0;  // finalized faster than drained
+};
+
+class ParticleFilter {
+ public:
+  void init(Arena& arena, const LocalizeConfig& config);
+  // Arena bytes init() takes for `config`.
+  [[nodiscard]] static std::size_t arena_bytes(const LocalizeConfig& config) noexcept;
+
+  [[nodiscard]] bool started() const noexcept { return started_; }
+
+  // Odometry since the last call: the base's fore/aft distance increment and the gyroscope's
+  // yaw rate, at `stamp_ns`. Before the first fix only the time is kept.
+  void predict(TimestampNs stamp_ns, double distance_m, double yaw_rate_radps) noexcept;
+  // A GPS fix. Fixes must not be older than the last odometry (the pipeline orders them).
+  GpsOutcome update(const GpsObservation& fix) noexcept;
+
+  // The weighted mean of the particles now.
+  [[nodiscard]] Pose2 estimate() const noexcept;
+  // The spread of the particles' positions (the square root of the covariance's trace).
+  [[nodiscard]] double position_spread_m() const noexcept;
+  // The mean distance scale and yaw-rate bias the particles carry.
+  [[nodiscard]] double mean_distance_scale() const noexcept;
+  [[nodiscard]] double mean_yaw_rate_bias_radps() const noexcept;
+
+  // Poses that left the history window, oldest first, smoothed by the particles that
+  // survived them; each is handed out once.
+  std::size_t drain_final(std::span<Pose2> out) noexcept;
+  // The smoothed poses of every step still in the window, oldest first (at the end of a run:
+  // the rest of the trajectory). Returns how many were written.
+  std::size_t smoothed_window(std::span<Pose2> out) const noexcept;
+  // The pose at `stamp_ns` on the best particle's ancestry, interpolated between history
+  // steps (and towards the current pose after the last one); false outside the window.
+  bool pose_at(TimestampNs stamp_ns, Pose2& out) const noexcept;
+
+  [[nodiscard]] const LocalizeCounters& counters() const noexcept { return counters_; }
+  [[nodiscard]] std::size_t particle_count() const noexcept { return count_; }
+  [[nodiscard]] std::size_t history_size() const noexcept { return history_size_; }
+  [[nodiscard]] std::size_t memory_bytes() const noexcept;
+
+ private:
+  struct HistoryEntry {
+    float x_m = 0.0f;  // the local frame is at most a few kilometres across: millimetres
+    float y_m = 0.0f;
+    float yaw_rad = 0.0f;
+    std::uint32_t parent = 0;  // the particle's index at the previous history step
+  };
+
+  struct PositionStats {
+    double mean_x_m = 0.0;
+    double mean_y_m = 0.0;
+    double spread_m = 0.0;
+  };
+  [[nodiscard]] PositionStats position_stats() const noexcept;
+  [[nodiscard]] double gaussian() noexcept;
+  void start_at(const GpsObservation& fix, double sigma_m, bool keep_heading) noexcept;
+  [[nodiscard]] double fix_sigma_m(const GpsObservation& fix) const noexcept;
+  void weigh(const GpsObservation& fix, double sigma_m, double weighing_sigma_m) noexcept;
+  void normalize_weights() noexcept;
+  [[nodiscard]] double effective_particles() const noexcept;
+  void resample() noexcept;
+  void push_history(TimestampNs stamp_ns) noexcept;
+  void finalize_oldest() noexcept;
+  // Lineages: the distinct history entries the current particles descend from at one step,
+  // each with the summed weight of its descendants (in trace_ and trace_weight_).
+  void start_lineages() const noexcept;
+  void next_lineage_generation() const noexcept;
+  void add_to_lineage(std::uint32_t index, double weight) const noexcept;
+  void step_lineages_back(std::size_t age) const noexcept;
+  [[nodiscard]] Pose2 lineage_pose(std::size_t age) const noexcept;
+  // The smoothed pose `age` steps back from the newest.
+  [[nodiscard]] Pose2 smoothed_at(std::size_t age) const noexcept;
+  [[nodiscard]] std::size_t best_particle() const noexcept;
+  [[nodiscard]] std::size_t slot_of_age(std::size_t age) const noexcept;
+
+  LocalizeConfig config_;
+  Random random_{1, "localize.particles"};
+  std::span<float> gaussian_table_;  // quantiles of N(0, 1)
+  std::uint64_t random_bits_ = 0;
+  std::uint32_t random_bits_left_ = 0;
+
+  // The particles, one array per quantity.
+  std::size_t count_ = 0;
+  std::span<double> x_m_;
+  std::span<double> y_m_;
+  std::span<double> yaw_rad_;
+  std::span<double> cos_yaw_;  // of yaw_rad_, kept by rotation in predict()
+  std::span<double> sin_yaw_;
+  std::span<double> scale_;
+  std::span<double> yaw_rate_bias_radps_;
+  std::span<double> weight_;
+  std::span<std::uint32_t> ancestor_;  // each particle's index at the newest history step
+  // Resampling's scratch: the chosen indices and a second copy of every quantity.
+  std::span<std::uint32_t> chosen_;
+  std::span<double> scratch_;
+
+  // The history ring: history_steps x particle_count entries, and each step's stamp.
+  std::span<HistoryEntry> history_;
+  std::span<TimestampNs> history_stamps_;
+  std::span<std::uint8_t> history_identity_;  // 1: no resampling before this step
+  bool resampled_since_push_ = false;
+  std::size_t history_newest_ = 0;
+  std::size_t history_size_ = 0;
+  // Lineage scratch (the smoothing queries are const: these are working space, not state).
+  std::span<std::uint32_t> trace_;         // distinct entry indices
+  std::span<double> trace_weight_;         // their descendants' summed weights
+  std::span<std::uint32_t> lineage_slot_;  // per entry index: its place in trace_
+  std::span<std::uint32_t> lineage_seen_;  // per entry index: the generation that placed it
+  mutable std::size_t lineage_count_ = 0;
+  mutable std::uint32_t lineage_generation_ = 0;
+  std::span<Pose2> final_;  // finalized poses waiting to be drained (a ring)
+  std::size_t final_first_ = 0;
+  std::size_t final_count_ = 0;
+
+  bool started_ = false;
+  bool have_stamp_ = false;
+  TimestampNs last_stamp_ns_ = 0;
+  TimestampNs next_history_ns_ = 0;
+  std::uint32_t rejected_in_a_row_ = 0;
+  bool have_fix_stamp_ = false;
+  TimestampNs last_fix_ns_ = 0;
+  LocalizeCounters counters_;
+};
+
+}  // namespace blockmap::localize

@@ -1,0 +1,561 @@
+#include "blockmap/localize/particle_filter.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <utility>
+
+#include "blockmap/core/check.hpp"
+
+namespace blockmap::localize {
+namespace {
+
+constexpr std::size_t kGaussianTableBits = 12;
+constexpr std::size_t kGaussianTableSize = std::size_t{1} << kGaussianTableBits;
+constexpr std::size_t kFinalCapacity = 64;  // finalized poses waiting to be drained
+
+// The standard normal quantile (inverse CDF), by bisection on std::erfc: run once per table
+// entry at init, so exactness matters more than speed.
+double normal_quantile(double p) noexcept {
+  double low = -10.0;
+  double high = 10.0;
+  for (int i = 0; i < 100; ++i) {
+    const double mid = 0.5 * (low + high);
+    if (0.5 * std::erfc(-mid / std::numbers::sqrt2) < p) {
+      low = mid;
+    } else {
+      high = mid;
+    }
+  }
+  return 0.5 * (low + high);
+}
+
+double wrap_angle(double angle_rad) noexcept {
+  return std::remainder(angle_rad, 2.0 * std::numbers::pi);
+}
+
+// Turns below this take the rotation by series (error below 1e-12 per step); larger ones
+// call cos and sin.
+constexpr double kSmallTurnRad = 0.05;
+
+// cos and sin of a small angle by their series: 1 - a^2/2 + a^4/24 and a - a^3/6 + a^5/120.
+std::pair<double, double> small_rotation(double a) noexcept {
+  const double a2 = a * a;
+  return {1.0 - a2 * (0.5 - a2 * (1.0 / 24.0)), a * (1.0 - a2 * (1.0 / 6.0 - a2 * (1.0 / 120.0)))};
+}
+
+// An angle a small step outside (-pi, pi] back inside, without a division.
+double wrap_small_step(double angle_rad) noexcept {
+  constexpr double kPi = std::numbers::pi;
+  if (angle_rad > kPi) {
+    return angle_rad - 2.0 * kPi;
+  }
+  return angle_rad <= -kPi ? angle_rad + 2.0 * kPi : angle_rad;
+}
+
+}  // namespace
+
+void ParticleFilter::init(Arena& arena, const LocalizeConfig& config) {
+  const std::string problem = validate(config);
+  BLOCKMAP_CHECK_MSG(problem.empty(), "invalid localize configuration (validate() says why)");
+  config_ = config;
+  random_ = Random(config.seed, "localize.particles");
+  count_ = config.particle_count;
+  const char* owner = "localize.particle_filter";
+  // Stratified quantiles: entry i is the quantile at (i + 0.5) / size, so the table is the
+  // normal distribution discretized, truncated at about 3.5 sigma.
+  gaussian_table_ = arena.allocate_array<float>(kGaussianTableSize, owner);
+  for (std::size_t i = 0; i < kGaussianTableSize; ++i) {
+    gaussian_table_[i] = static_cast<float>(
+        normal_quantile((static_cast<double>(i) + 0.5) / static_cast<double>(kGaussianTableSize)));
+  }
+  x_m_ = arena.allocate_array<double>(count_, owner);
+  y_m_ = arena.allocate_array<double>(count_, owner);
+  yaw_rad_ = arena.allocate_array<double>(count_, owner);
+  cos_yaw_ = arena.allocate_array<double>(count_, owner);
+  sin_yaw_ = arena.allocate_array<double>(count_, owner);
+  scale_ = arena.allocate_array<double>(count_, owner);
+  yaw_rate_bias_radps_ = arena.allocate_array<double>(count_, owner);
+  weight_ = arena.allocate_array<double>(count_, owner);
+  ancestor_ = arena.allocate_array<std::uint32_t>(count_, owner);
+  chosen_ = arena.allocate_array<std::uint32_t>(count_, owner);
+  scratch_ = arena.allocate_array<double>(count_, owner);
+  history_ = arena.allocate_array<HistoryEntry>(config.history_steps * count_, owner);
+  history_stamps_ = arena.allocate_array<TimestampNs>(config.history_steps, owner);
+  history_identity_ = arena.allocate_array<std::uint8_t>(config.history_steps, owner);
+  trace_ = arena.allocate_array<std::uint32_t>(count_, owner);
+  trace_weight_ = arena.allocate_array<double>(count_, owner);
+  lineage_slot_ = arena.allocate_array<std::uint32_t>(count_, owner);
+  lineage_seen_ = arena.allocate_array<std::uint32_t>(count_, owner);
+  final_ = arena.allocate_array<Pose2>(kFinalCapacity, owner);
+}
+
+std::size_t ParticleFilter::arena_bytes(const LocalizeConfig& config) noexcept {
+  constexpr std::size_t kAlignment = 64;  // per allocation, at most
+  const std::size_t n = config.particle_count;
+  return kGaussianTableSize * sizeof(float) + 10 * n * sizeof(double) +
+         5 * n * sizeof(std::uint32_t) + config.history_steps * n * sizeof(HistoryEntry) +
+         config.history_steps * (sizeof(TimestampNs) + 1) + kFinalCapacity * sizeof(Pose2) +
+         20 * kAlignment;
+}
+
+std::size_t ParticleFilter::memory_bytes() const noexcept {
+  return gaussian_table_.size_bytes() + x_m_.size_bytes() + y_m_.size_bytes() +
+         yaw_rad_.size_bytes() + cos_yaw_.size_bytes() + sin_yaw_.size_bytes() +
+         scale_.size_bytes() + yaw_rate_bias_radps_.size_bytes() + weight_.size_bytes() +
+         ancestor_.size_bytes() + chosen_.size_bytes() + scratch_.size_bytes() +
+         history_.size_bytes() + history_stamps_.size_bytes() + history_identity_.size_bytes() +
+         trace_.size_bytes() + trace_weight_.size_bytes() + lineage_slot_.size_bytes() +
+         lineage_seen_.size_bytes() + final_.size_bytes();
+}
+
+double ParticleFilter::gaussian() noexcept {
+  // Five table indices from each 64-bit draw.
+  if (random_bits_left_ < kGaussianTableBits) {
+    random_bits_ = random_.next();
+    random_bits_left_ = 64;
+  }
+  const auto index = static_cast<std::size_t>(random_bits_ & (kGaussianTableSize - 1));
+  random_bits_ >>= kGaussianTableBits;
+  random_bits_left_ -= static_cast<std::uint32_t>(kGaussianTableBits);
+  return static_cast<double>(gaussian_table_[index]);
+}
+
+void ParticleFilter::predict(TimestampNs stamp_ns, double distance_m,
+                             double yaw_rate_radps) noexcept {
+  const double dt_s = have_stamp_ ? std::max(0.0, seconds_from_ns(stamp_ns - last_stamp_ns_)) : 0.0;
+  have_stamp_ = true;
+  last_stamp_ns_ = std::max(last_stamp_ns_, stamp_ns);
+  if (!started_) {
+    return;
+  }
+  ++counters_.predictions;
+  const double travelled_m = std::abs(distance_m);
+  const double distance_sigma = config_.distance_noise_per_sqrt_m * std::sqrt(travelled_m);
+  const double yaw_sigma =
+      std::sqrt(config_.yaw_rate_noise_radps * config_.yaw_rate_noise_radps * dt_s * dt_s +
+                config_.yaw_noise_per_sqrt_m * config_.yaw_noise_per_sqrt_m * travelled_m);
+  const double scale_sigma = config_.scale_walk_per_sqrt_m * std::sqrt(travelled_m);
+  const double bias_sigma = config_.yaw_rate_bias_walk_radps_per_sqrt_s * std::sqrt(dt_s);
+  for (std::size_t i = 0; i < count_; ++i) {
+    // Each particle's own wheels and gyroscope: its scale and bias, plus this step's noise.
+    const double d = distance_m * scale_[i] + distance_sigma * gaussian();
+    const double turn = (yaw_rate_radps - yaw_rate_bias_radps_[i]) * dt_s + yaw_sigma * gaussian();
+    const double next_yaw = yaw_rad_[i] + turn;
+    if (std::abs(turn) < kSmallTurnRad) {
+      // Along the arc's mid-point heading, by rotating the particle's (cos, sin) of yaw by
+      // half the turn twice: no trigonometric call per particle and step.
+      const auto [c_half, s_half] = small_rotation(0.5 * turn);
+      const double c_mid = cos_yaw_[i] * c_half - sin_yaw_[i] * s_half;
+      const double s_mid = sin_yaw_[i] * c_half + cos_yaw_[i] * s_half;
+      x_m_[i] += d * c_mid;
+      y_m_[i] += d * s_mid;
+      cos_yaw_[i] = c_mid * c_half - s_mid * s_half;
+      sin_yaw_[i] = s_mid * c_half + c_mid * s_half;
+      yaw_rad_[i] = wrap_small_step(next_yaw);
+    } else {
+      const double heading = yaw_rad_[i] + 0.5 * turn;
+      x_m_[i] += d * std::cos(heading);
+      y_m_[i] += d * std::sin(heading);
+      yaw_rad_[i] = wrap_angle(next_yaw);
+      cos_yaw_[i] = std::cos(yaw_rad_[i]);
+      sin_yaw_[i] = std::sin(yaw_rad_[i]);
+    }
+    scale_[i] += scale_sigma * gaussian();
+    yaw_rate_bias_radps_[i] += bias_sigma * gaussian();
+  }
+  if (stamp_ns >= next_history_ns_) {
+    push_history(stamp_ns);
+  }
+}
+
+double ParticleFilter::fix_sigma_m(const GpsObservation& fix) const noexcept {
+  const double sigma = config_.user_range_error_m * std::max(fix.hdop, 0.0) *
+                       (fix.differential ? config_.dgps_sigma_factor : 1.0);
+  return std::max(sigma, config_.min_gps_sigma_m);
+}
+
+GpsOutcome ParticleFilter::update(const GpsObservation& fix) noexcept {
+  const double sigma_m = fix_sigma_m(fix);
+  if (!started_) {
+    start_at(fix, config_.initial_position_sigma_m, false);
+    return GpsOutcome::kStarted;
+  }
+  // An outlier test on the estimate: the fix against the particles' mean, allowing for the
+  // fix's sigma and the particles' own spread.
+  const PositionStats where = position_stats();
+  const double spread_m = where.spread_m;
+  const double innovation_m = std::hypot(fix.east_m - where.mean_x_m, fix.north_m - where.mean_y_m);
+  const double gate_m =
+      config_.outlier_gate_sigmas * std::sqrt(sigma_m * sigma_m + spread_m * spread_m);
+  if (innovation_m > gate_m) {
+    ++counters_.fixes_rejected;
+    if (++rejected_in_a_row_ < config_.max_rejected_fixes) {
+      return GpsOutcome::kRejected;
+    }
+    // GPS has disagreed for too long: the filter is wrong, not the receiver.
+    ++counters_.recoveries;
+    start_at(fix, std::max(sigma_m, config_.initial_position_sigma_m), true);
+    return GpsOutcome::kRecovered;
+  }
+  rejected_in_a_row_ = 0;
+  ++counters_.fixes_used;
+  const double since_last_s = have_fix_stamp_
+                                  ? std::max(seconds_from_ns(fix.stamp_ns - last_fix_ns_), 1e-3)
+                                  : config_.gps_correlation_s;
+  have_fix_stamp_ = true;
+  last_fix_ns_ = fix.stamp_ns;
+  const double correlated = std::sqrt(std::max(1.0, config_.gps_correlation_s / since_last_s));
+  weigh(fix, sigma_m, sigma_m * correlated);
+  if (effective_particles() < config_.resample_effective_fraction * static_cast<double>(count_)) {
+    resample();
+  }
+  return GpsOutcome::kUsed;
+}
+
+void ParticleFilter::start_at(const GpsObservation& fix, double sigma_m,
+                              bool keep_heading) noexcept {
+  for (std::size_t i = 0; i < count_; ++i) {
+    x_m_[i] = fix.east_m + sigma_m * gaussian();
+    y_m_[i] = fix.north_m + sigma_m * gaussian();
+    if (!keep_heading) {
+      // Unknown heading: spread evenly over initial_yaw_sigma_rad either side of east.
+      const double share = (static_cast<double>(i) + 0.5) / static_cast<double>(count_);
+      yaw_rad_[i] = wrap_angle((2.0 * share - 1.0) * config_.initial_yaw_sigma_rad);
+      scale_[i] = 1.0 + config_.initial_scale_sigma * gaussian();
+      yaw_rate_bias_radps_[i] = config_.initial_yaw_rate_bias_sigma_radps * gaussian();
+    }
+    cos_yaw_[i] = std::cos(yaw_rad_[i]);
+    sin_yaw_[i] = std::sin(yaw_rad_[i]);
+    weight_[i] = 1.0 / static_cast<double>(count_);
+  }
+  if (!started_ || !keep_heading) {
+    // A new start: the history starts over too.
+    history_size_ = 0;
+    for (std::size_t i = 0; i < count_; ++i) {
+      ancestor_[i] = static_cast<std::uint32_t>(i);
+    }
+    resampled_since_push_ = false;
+  }
+  started_ = true;
+  rejected_in_a_row_ = 0;
+  const TimestampNs stamp_ns = std::max(fix.stamp_ns, last_stamp_ns_);
+  push_history(stamp_ns);
+}
+
+void ParticleFilter::weigh(const GpsObservation& fix, double sigma_m,
+                           double weighing_sigma_m) noexcept {
+  // The paper's observation model: a Gaussian of the distance to the fix (with the sigma that
+  // allows for the error's correlation). Particles beyond the gate (of the fix's own sigma)
+  // get no weight: the paper does not resample them.
+  const double inverse_two_variance = 0.5 / (weighing_sigma_m * weighing_sigma_m);
+  const double gate_squared =
+      config_.resample_gate_sigmas * config_.resample_gate_sigmas * sigma_m * sigma_m;
+  double total = 0.0;
+  for (std::size_t i = 0; i < count_; ++i) {
+    const double dx = x_m_[i] - fix.east_m;
+    const double dy = y_m_[i] - fix.north_m;
+    const double squared = dx * dx + dy * dy;
+    weight_[i] *= squared > gate_squared ? 0.0 : std::exp(-squared * inverse_two_variance);
+    total += weight_[i];
+  }
+  if (total <= 0.0) {
+    // Every particle beyond the gate, yet the fix passed the outlier test (the particles are
+    // spread wide): keep them all, weighed by distance alone.
+    for (std::size_t i = 0; i < count_; ++i) {
+      const double dx = x_m_[i] - fix.east_m;
+      const double dy = y_m_[i] - fix.north_m;
+      weight_[i] = 1.0 / (1.0 + (dx * dx + dy * dy) * inverse_two_variance);
+    }
+  }
+  normalize_weights();
+}
+
+void ParticleFilter::normalize_weights() noexcept {
+  double total = 0.0;
+  for (std::size_t i = 0; i < count_; ++i) {
+    total += weight_[i];
+  }
+  const double inverse = total > 0.0 ? 1.0 / total : 0.0;
+  for (std::size_t i = 0; i < count_; ++i) {
+    weight_[i] = total > 0.0 ? weight_[i] * inverse : 1.0 / static_cast<double>(count_);
+  }
+}
+
+double ParticleFilter::effective_particles() const noexcept {
+  double sum_squares = 0.0;
+  for (std::size_t i = 0; i < count_; ++i) {
+    sum_squares += weight_[i] * weight_[i];
+  }
+  return sum_squares > 0.0 ? 1.0 / sum_squares : 0.0;
+}
+
+void ParticleFilter::resample() noexcept {
+  // Systematic resampling: one random offset, N evenly spaced pointers into the cumulative
+  // weights. O(N), and a particle of weight w is copied N w times, give or take one.
+  ++counters_.resamplings;
+  const double step = 1.0 / static_cast<double>(count_);
+  double pointer = random_.uniform() * step;
+  double cumulative = weight_[0];
+  std::size_t source = 0;
+  for (std::size_t i = 0; i < count_; ++i) {
+    while (pointer > cumulative && source + 1 < count_) {
+      cumulative += weight_[++source];
+    }
+    chosen_[i] = static_cast<std::uint32_t>(source);
+    pointer += step;
+  }
+  const auto gather = [&](std::span<double> values) {
+    for (std::size_t i = 0; i < count_; ++i) {
+      scratch_[i] = values[chosen_[i]];
+    }
+    std::copy_n(scratch_.begin(), count_, values.begin());
+  };
+  gather(x_m_);
+  gather(y_m_);
+  gather(yaw_rad_);
+  gather(cos_yaw_);
+  gather(sin_yaw_);
+  gather(scale_);
+  gather(yaw_rate_bias_radps_);
+  // The ancestry follows the copies (trace_ is free scratch between calls).
+  for (std::size_t i = 0; i < count_; ++i) {
+    trace_[i] = ancestor_[chosen_[i]];
+  }
+  std::copy_n(trace_.begin(), count_, ancestor_.begin());
+  std::fill_n(weight_.begin(), count_, step);
+  resampled_since_push_ = true;
+}
+
+std::size_t ParticleFilter::slot_of_age(std::size_t age) const noexcept {
+  const std::size_t steps = config_.history_steps;
+  return (history_newest_ + steps - age) % steps;
+}
+
+void ParticleFilter::push_history(TimestampNs stamp_ns) noexcept {
+  const std::size_t steps = config_.history_steps;
+  if (history_size_ == steps) {
+    finalize_oldest();  // its slot is the one written next
+  }
+  const std::size_t slot = history_size_ == 0 ? 0 : (history_newest_ + 1) % steps;
+  HistoryEntry* entries = history_.data() + slot * count_;
+  for (std::size_t i = 0; i < count_; ++i) {
+    entries[i] = HistoryEntry{static_cast<float>(x_m_[i]), static_cast<float>(y_m_[i]),
+                              static_cast<float>(yaw_rad_[i]), ancestor_[i]};
+    // The series rotations drift by ~1e-12 a step: start again from the yaw now and then.
+    cos_yaw_[i] = std::cos(yaw_rad_[i]);
+    sin_yaw_[i] = std::sin(yaw_rad_[i]);
+    ancestor_[i] = static_cast<std::uint32_t>(i);
+  }
+  history_stamps_[slot] = stamp_ns;
+  // Without a resampling since the last step every parent is the particle itself: tracing
+  // back across this step changes nothing (a GPS outage costs no tracing at all).
+  history_identity_[slot] = resampled_since_push_ ? 0 : 1;
+  resampled_since_push_ = false;
+  history_newest_ = slot;
+  history_size_ = std::min(history_size_ + 1, steps);
+  next_history_ns_ = stamp_ns + ns_from_seconds(config_.history_interval_s);
+  ++counters_.history_steps;
+}
+
+void ParticleFilter::start_lineages() const noexcept {
+  // Each current particle's entry at the newest step, with its weight now; particles that
+  // share that entry are one lineage (their weights add).
+  next_lineage_generation();
+  for (std::size_t i = 0; i < count_; ++i) {
+    add_to_lineage(ancestor_[i], weight_[i]);
+  }
+}
+
+void ParticleFilter::next_lineage_generation() const noexcept {
+  lineage_count_ = 0;
+  if (++lineage_generation_ == 0) {  // wrapped: old marks would look current
+    std::fill(lineage_seen_.begin(), lineage_seen_.end(), 0U);
+    lineage_generation_ = 1;
+  }
+}
+
+void ParticleFilter::add_to_lineage(std::uint32_t index, double weight) const noexcept {
+  if (lineage_seen_[index] != lineage_generation_) {
+    lineage_seen_[index] = lineage_generation_;
+    lineage_slot_[index] = static_cast<std::uint32_t>(lineage_count_);
+    trace_[lineage_count_] = index;
+    trace_weight_[lineage_count_] = 0.0;
+    ++lineage_count_;
+  }
+  trace_weight_[lineage_slot_[index]] += weight;
+}
+
+void ParticleFilter::step_lineages_back(std::size_t age) const noexcept {
+  // From the entries at `age` to their parents one step older. Lineages merge as they go
+  // back (resampling copied their ancestors), so after a few steps there are only a few.
+  const std::size_t slot = slot_of_age(age);
+  if (history_identity_[slot] != 0) {
+    return;
+  }
+  const HistoryEntry* entries = history_.data() + slot * count_;
+  const std::size_t count = lineage_count_;
+  // The current list moves to the back half of the scratch while the new one is built.
+  for (std::size_t k = 0; k < count; ++k) {
+    chosen_[k] = trace_[k];
+    scratch_[k] = trace_weight_[k];
+  }
+  next_lineage_generation();
+  for (std::size_t k = 0; k < count; ++k) {
+    add_to_lineage(entries[chosen_[k]].parent, scratch_[k]);
+  }
+}
+
+Pose2 ParticleFilter::lineage_pose(std::size_t age) const noexcept {
+  const std::size_t slot = slot_of_age(age);
+  const HistoryEntry* entries = history_.data() + slot * count_;
+  Pose2 pose;
+  pose.stamp_ns = history_stamps_[slot];
+  double sin_sum = 0.0;
+  double cos_sum = 0.0;
+  for (std::size_t k = 0; k < lineage_count_; ++k) {
+    const HistoryEntry& e = entries[trace_[k]];
+    const double w = trace_weight_[k];
+    pose.x_m += w * static_cast<double>(e.x_m);
+    pose.y_m += w * static_cast<double>(e.y_m);
+    sin_sum += w * std::sin(static_cast<double>(e.yaw_rad));
+    cos_sum += w * std::cos(static_cast<double>(e.yaw_rad));
+  }
+  pose.yaw_rad = std::atan2(sin_sum, cos_sum);
+  return pose;
+}
+
+Pose2 ParticleFilter::smoothed_at(std::size_t age) const noexcept {
+  // Each current particle's ancestor `age` steps back, weighed by the particle's weight now:
+  // the particles that survived later fixes vote for where the robot was.
+  start_lineages();
+  for (std::size_t back = 0; back < age; ++back) {
+    step_lineages_back(back);
+  }
+  return lineage_pose(age);
+}
+
+void ParticleFilter::finalize_oldest() noexcept {
+  const Pose2 pose = smoothed_at(history_size_ - 1);
+  if (final_count_ == final_.size()) {
+    ++counters_.final_poses_dropped;  // the consumer is not draining: keep the newest
+    final_first_ = (final_first_ + 1) % final_.size();
+    --final_count_;
+  }
+  final_[(final_first_ + final_count_) % final_.size()] = pose;
+  ++final_count_;
+}
+
+std::size_t ParticleFilter::drain_final(std::span<Pose2> out) noexcept {
+  const std::size_t n = std::min(out.size(), final_count_);
+  for (std::size_t k = 0; k < n; ++k) {
+    out[k] = final_[final_first_];
+    final_first_ = (final_first_ + 1) % final_.size();
+  }
+  final_count_ -= n;
+  return n;
+}
+
+std::size_t ParticleFilter::smoothed_window(std::span<Pose2> out) const noexcept {
+  const std::size_t n = std::min(out.size(), history_size_);
+  // One pass back from the newest step; out is oldest first.
+  start_lineages();
+  for (std::size_t age = 0; age < n; ++age) {
+    if (age > 0) {
+      step_lineages_back(age - 1);
+    }
+    out[n - 1 - age] = lineage_pose(age);
+  }
+  return n;
+}
+
+std::size_t ParticleFilter::best_particle() const noexcept {
+  return static_cast<std::size_t>(
+      std::max_element(weight_.begin(), weight_.begin() + static_cast<std::ptrdiff_t>(count_)) -
+      weight_.begin());
+}
+
+bool ParticleFilter::pose_at(TimestampNs stamp_ns, Pose2& out) const noexcept {
+  if (!started_ || history_size_ == 0) {
+    return false;
+  }
+  const std::size_t oldest_slot = slot_of_age(history_size_ - 1);
+  if (stamp_ns < history_stamps_[oldest_slot] || stamp_ns > last_stamp_ns_) {
+    return false;
+  }
+  // Walk the best particle's ancestry from now back to the step at or before `stamp_ns`.
+  const std::size_t best = best_particle();
+  Pose2 later{last_stamp_ns_, x_m_[best], y_m_[best], yaw_rad_[best]};
+  std::uint32_t index = ancestor_[best];
+  for (std::size_t age = 0; age < history_size_; ++age) {
+    const std::size_t slot = slot_of_age(age);
+    const HistoryEntry& e = history_[slot * count_ + index];
+    const Pose2 earlier{history_stamps_[slot], static_cast<double>(e.x_m),
+                        static_cast<double>(e.y_m), static_cast<double>(e.yaw_rad)};
+    if (earlier.stamp_ns <= stamp_ns) {
+      const double span_s = seconds_from_ns(later.stamp_ns - earlier.stamp_ns);
+      const double f = span_s > 0.0 ? seconds_from_ns(stamp_ns - earlier.stamp_ns) / span_s : 0.0;
+      out.stamp_ns = stamp_ns;
+      out.x_m = earlier.x_m + f * (later.x_m - earlier.x_m);
+      out.y_m = earlier.y_m + f * (later.y_m - earlier.y_m);
+      out.yaw_rad = wrap_angle(earlier.yaw_rad + f * wrap_angle(later.yaw_rad - earlier.yaw_rad));
+      return true;
+    }
+    later = earlier;
+    index = e.parent;
+  }
+  return false;
+}
+
+Pose2 ParticleFilter::estimate() const noexcept {
+  Pose2 pose;
+  pose.stamp_ns = last_stamp_ns_;
+  double sin_sum = 0.0;
+  double cos_sum = 0.0;
+  for (std::size_t i = 0; i < count_; ++i) {
+    pose.x_m += weight_[i] * x_m_[i];
+    pose.y_m += weight_[i] * y_m_[i];
+    sin_sum += weight_[i] * sin_yaw_[i];
+    cos_sum += weight_[i] * cos_yaw_[i];
+  }
+  pose.yaw_rad = std::atan2(sin_sum, cos_sum);
+  return pose;
+}
+
+ParticleFilter::PositionStats ParticleFilter::position_stats() const noexcept {
+  PositionStats stats;
+  for (std::size_t i = 0; i < count_; ++i) {
+    stats.mean_x_m += weight_[i] * x_m_[i];
+    stats.mean_y_m += weight_[i] * y_m_[i];
+  }
+  double variance = 0.0;
+  for (std::size_t i = 0; i < count_; ++i) {
+    const double dx = x_m_[i] - stats.mean_x_m;
+    const double dy = y_m_[i] - stats.mean_y_m;
+    variance += weight_[i] * (dx * dx + dy * dy);
+  }
+  stats.spread_m = std::sqrt(variance);
+  return stats;
+}
+
+double ParticleFilter::position_spread_m() const noexcept {
+  return position_stats().spread_m;
+}
+
+double ParticleFilter::mean_distance_scale() const noexcept {
+  double mean = 0.0;
+  for (std::size_t i = 0; i < count_; ++i) {
+    mean += weight_[i] * scale_[i];
+  }
+  return mean;
+}
+
+double ParticleFilter::mean_yaw_rate_bias_radps() const noexcept {
+  double mean = 0.0;
+  for (std::size_t i = 0; i < count_; ++i) {
+    mean += weight_[i] * yaw_rate_bias_radps_[i];
+  }
+  return mean;
+}
+
+}  // namespace blockmap::localize

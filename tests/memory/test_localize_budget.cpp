@@ -1,0 +1,50 @@
+// Localization takes everything at init: predicting, weighing, resampling, finalizing history
+// steps and draining them allocate nothing, step after step.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+
+#include "blockmap/core/arena.hpp"
+#include "blockmap/localize/particle_filter.hpp"
+#include "memory_assertions.hpp"
+
+namespace blockmap::localize {
+namespace {
+
+TEST(LocalizeBudget, StepsAllocateNothingAfterInitAndFitTheirBudget) {
+  LocalizeConfig config;
+  config.particle_count = 500;
+  config.history_steps = 64;  // small, so that steps leave the window during the test
+  const std::size_t budget = ParticleFilter::arena_bytes(config);
+  Arena arena(budget);
+  ParticleFilter filter;
+  filter.init(arena, config);
+  arena.seal();
+  EXPECT_LE(arena.used_bytes(), budget);
+  std::array<Pose2, 16> drained{};
+  std::array<Pose2, 64> window{};
+  std::size_t finalized = 0;
+  EXPECT_NO_ALLOCATIONS({
+    // 60 s of a straight drive east at 1 m/s, odometry at 100 Hz and GPS at 4 Hz.
+    for (int k = 1; k <= 6000; ++k) {
+      const TimestampNs stamp = TimestampNs{k} * 10'000'000;
+      filter.predict(stamp, 0.01, 0.0);
+      if (k % 25 == 0) {
+        static_cast<void>(
+            filter.update(GpsObservation{stamp, 0.01 * k, 0.3 * std::sin(0.01 * k), 1.0, false}));
+      }
+      finalized += filter.drain_final(drained);
+    }
+    static_cast<void>(filter.smoothed_window(window));
+    Pose2 pose;
+    static_cast<void>(filter.pose_at(TimestampNs{59} * 1'000'000'000, pose));
+  });
+  EXPECT_GT(finalized, 100u);
+  EXPECT_GT(filter.counters().resamplings, 0u);
+  EXPECT_LE(filter.memory_bytes(), arena.used_bytes());
+  EXPECT_EQ(arena.failed_allocations().value(), 0u);
+}
+
+}  // namespace
+}  // namespace blockmap::localize
