@@ -11,7 +11,7 @@ namespace blockmap::localize {
 struct LocalizeConfig {
   // Capacities, fixed at init. A history step is kept every history_interval_s of odometry;
   // history_steps of them make the fixed lag (512 x 0.25 s: about two minutes).
-  std::size_t particle_count = 1000;
+  std::size_t particle_count = 2000;
   std::size_t history_steps = 512;
   double history_interval_s = 0.25;
 
