@@ -30,5 +30,7 @@ Command add_planes_command(CLI::App& app);
 
 // `blockmap simulate --world NAME --out DIR`: a recorded run of the simulated robot.
 Command add_simulate_command(CLI::App& app);
+// `blockmap replay DIR [--out DIR2]`: the onboard pipeline over recorded device logs.
+Command add_replay_command(CLI::App& app);
 
 }  // namespace blockmap::cli

@@ -205,10 +205,18 @@ GpsSpec parse_gps(TableReader& root) {
   }
   gps.horizontal_error_rms_m = t.non_negative(
       "horizontal_error_rms_m", t.number_or("horizontal_error_rms_m", gps.horizontal_error_rms_m));
+  gps.multipath_error_rms_m = t.non_negative(
+      "multipath_error_rms_m", t.number_or("multipath_error_rms_m", gps.multipath_error_rms_m));
+  if (gps.multipath_error_rms_m > gps.horizontal_error_rms_m) {
+    t.fail("multipath_error_rms_m", "is part of horizontal_error_rms_m: it cannot exceed it");
+  }
   gps.vertical_error_rms_m = t.non_negative(
       "vertical_error_rms_m", t.number_or("vertical_error_rms_m", gps.vertical_error_rms_m));
   gps.correlation_time_s =
       t.positive("correlation_time_s", t.number_or("correlation_time_s", gps.correlation_time_s));
+  gps.multipath_correlation_s =
+      t.positive("multipath_correlation_s",
+                 t.number_or("multipath_correlation_s", gps.multipath_correlation_s));
   gps.latency_s = t.in_range("latency_s", t.number_or("latency_s", gps.latency_s), 0.0, 1.0);
   gps.hdop_open_sky =
       t.in_range("hdop_open_sky", t.number_or("hdop_open_sky", gps.hdop_open_sky), 0.5, 20.0);

@@ -105,6 +105,10 @@ class SimGps {
   };
   [[nodiscard]] TimestampNs epoch_ns(const SimContext& context, std::uint64_t epoch) const;
   void make_epoch(SimContext& context, SimSink& sink, SimStats& stats);
+  // Per-axis sigma of the slow part of the horizontal error.
+  [[nodiscard]] static double slow_horizontal_sigma_m(const GpsSpec& spec) noexcept;
+  // Both parts of the error, advanced by dt_s.
+  void wander(double dt_s);
   [[nodiscard]] bool blocked(const SimContext& context, const Vec3& antenna,
                              const Satellite& satellite) const;
 
@@ -115,7 +119,8 @@ class SimGps {
   SimRandom random_;
   SerialWire wire_;
   std::vector<Satellite> satellites_;
-  Vec3 error_m_ = Vec3::Zero();
+  Vec3 slow_error_m_ = Vec3::Zero();       // orbits, clocks, atmosphere
+  Vec2 multipath_error_m_ = Vec2::Zero();  // horizontal, changes within seconds
   std::uint64_t next_epoch_ = 1;
   std::array<char, protocol::nmea::kMaxSentenceBytes> sentence_{};
 };

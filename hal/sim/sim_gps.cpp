@@ -1,5 +1,6 @@
-// The simulated GPS receiver. Its error wanders slowly: a first-order Gauss-Markov process per
-// axis with the configured RMS and correlation time, as the paper's 2 m receiver behaves. It
+// The simulated GPS receiver. Its error has a slow part (orbits, clocks, the atmosphere) and a
+// fast one (multipath and receiver noise), each a first-order Gauss-Markov process per axis
+// with its own RMS and correlation time; together they make the paper's 2 m receiver. It
 // sees a fixed constellation; a building between the antenna and a satellite hides it, fewer
 // satellites raise the HDOP and the error with it, and with fewer than four there is no fix
 // (the paper: "unavailable due to satellite occlusions by tall buildings"). Each epoch's GGA, RMC
@@ -56,10 +57,34 @@ SimGps::SimGps(const GpsSpec& spec, const Site& site, std::size_t device, std::u
     satellite.id = static_cast<std::uint16_t>(2 + 3 * i);
     satellites_.push_back(satellite);
   }
-  // Start the wander from its stationary distribution.
-  const double horizontal_sigma = spec.horizontal_error_rms_m / std::sqrt(2.0);
-  error_m_ = Vec3(random_.gaussian(horizontal_sigma), random_.gaussian(horizontal_sigma),
-                  random_.gaussian(spec.vertical_error_rms_m));
+  // Start both wanders from their stationary distributions.
+  const double slow_sigma = slow_horizontal_sigma_m(spec);
+  slow_error_m_ = Vec3(random_.gaussian(slow_sigma), random_.gaussian(slow_sigma),
+                       random_.gaussian(spec.vertical_error_rms_m));
+  const double multipath_sigma = spec.multipath_error_rms_m / std::numbers::sqrt2;
+  multipath_error_m_ = Vec2(random_.gaussian(multipath_sigma), random_.gaussian(multipath_sigma));
+}
+
+double SimGps::slow_horizontal_sigma_m(const GpsSpec& spec) noexcept {
+  // Per axis; the two parts' variances add up to the horizontal RMS squared.
+  const double total = spec.horizontal_error_rms_m;
+  const double multipath = spec.multipath_error_rms_m;
+  return std::sqrt(std::max(0.0, total * total - multipath * multipath) / 2.0);
+}
+
+void SimGps::wander(double dt_s) {
+  // Each part is a first-order Gauss-Markov process, exactly discretised for dt_s.
+  const auto step = [&](double& value, double sigma, double correlation_s) {
+    const double keep = std::exp(-dt_s / correlation_s);
+    value = keep * value + std::sqrt(1.0 - keep * keep) * random_.gaussian(sigma);
+  };
+  const double slow_sigma = slow_horizontal_sigma_m(spec_);
+  step(slow_error_m_.x(), slow_sigma, spec_.correlation_time_s);
+  step(slow_error_m_.y(), slow_sigma, spec_.correlation_time_s);
+  step(slow_error_m_.z(), spec_.vertical_error_rms_m, spec_.correlation_time_s);
+  const double multipath_sigma = spec_.multipath_error_rms_m / std::numbers::sqrt2;
+  step(multipath_error_m_.x(), multipath_sigma, spec_.multipath_correlation_s);
+  step(multipath_error_m_.y(), multipath_sigma, spec_.multipath_correlation_s);
 }
 
 TimestampNs SimGps::epoch_ns(const SimContext& context, std::uint64_t epoch) const {
@@ -111,14 +136,7 @@ void SimGps::make_epoch(SimContext& context, SimSink& sink, SimStats& stats) {
   truth.epoch_ns = epoch;
   truth.antenna_m = state.position_m + state.rotation() * spec_.antenna_m;
 
-  // The wander, exactly discretised for the epoch interval.
-  const double dt = 1.0 / spec_.rate_hz;
-  const double keep = std::exp(-dt / spec_.correlation_time_s);
-  const double fresh = std::sqrt(1.0 - keep * keep);
-  const double horizontal_sigma = spec_.horizontal_error_rms_m / std::sqrt(2.0);
-  error_m_.x() = keep * error_m_.x() + fresh * random_.gaussian(horizontal_sigma);
-  error_m_.y() = keep * error_m_.y() + fresh * random_.gaussian(horizontal_sigma);
-  error_m_.z() = keep * error_m_.z() + fresh * random_.gaussian(spec_.vertical_error_rms_m);
+  wander(1.0 / spec_.rate_hz);
 
   nmea::GsaData gsa;
   gsa.automatic = true;
@@ -133,7 +151,8 @@ void SimGps::make_epoch(SimContext& context, SimSink& sink, SimStats& stats) {
                                                            truth.satellites_visible)
                          : 99.9;
   // Fewer satellites, worse geometry: the error grows with the HDOP.
-  truth.error_m = error_m_ * (truth.fix ? truth.hdop / spec_.hdop_open_sky : 1.0);
+  const Vec3 error_m = slow_error_m_ + Vec3(multipath_error_m_.x(), multipath_error_m_.y(), 0.0);
+  truth.error_m = error_m * (truth.fix ? truth.hdop / spec_.hdop_open_sky : 1.0);
 
   msg::GpsFix fix;
   const double utc_s = site_.start_unix_s + t_s;

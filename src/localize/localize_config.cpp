@@ -28,8 +28,18 @@ std::string validate(const LocalizeConfig& c) {
   if (!(c.user_range_error_m > 0.0) || !(c.min_gps_sigma_m > 0.0) || !(c.dgps_sigma_factor > 0.0)) {
     return "user_range_error_m, min_gps_sigma_m and dgps_sigma_factor must be > 0";
   }
-  if (!(c.gps_correlation_s >= 0.0)) {
-    return "gps_correlation_s must be >= 0";
+  // Some of the error must be fast: a fix with only a slow error would pin the particles.
+  if (!(c.gps_bias_share >= 0.0 && c.gps_bias_share <= 0.95)) {
+    return "gps_bias_share must be in [0, 0.95]";
+  }
+  if (!(c.gps_bias_correlation_s > 0.0) || !(c.gps_noise_correlation_s >= 0.0)) {
+    return "gps_bias_correlation_s must be > 0 and gps_noise_correlation_s >= 0";
+  }
+  if (!(c.gps_likelihood_inflation >= 1.0)) {
+    return "gps_likelihood_inflation must be >= 1";
+  }
+  if (!(c.gps_white_sigma_m > 0.0)) {
+    return "gps_white_sigma_m must be > 0";
   }
   if (!(c.resample_gate_sigmas > 0.0) || !(c.outlier_gate_sigmas > 0.0)) {
     return "resample_gate_sigmas and outlier_gate_sigmas must be > 0";

@@ -76,6 +76,10 @@ void ParticleFilter::init(Arena& arena, const LocalizeConfig& config) {
   sin_yaw_ = arena.allocate_array<double>(count_, owner);
   scale_ = arena.allocate_array<double>(count_, owner);
   yaw_rate_bias_radps_ = arena.allocate_array<double>(count_, owner);
+  gps_slow_x_m_ = arena.allocate_array<double>(count_, owner);
+  gps_slow_y_m_ = arena.allocate_array<double>(count_, owner);
+  gps_fast_x_m_ = arena.allocate_array<double>(count_, owner);
+  gps_fast_y_m_ = arena.allocate_array<double>(count_, owner);
   weight_ = arena.allocate_array<double>(count_, owner);
   ancestor_ = arena.allocate_array<std::uint32_t>(count_, owner);
   chosen_ = arena.allocate_array<std::uint32_t>(count_, owner);
@@ -93,7 +97,7 @@ void ParticleFilter::init(Arena& arena, const LocalizeConfig& config) {
 std::size_t ParticleFilter::arena_bytes(const LocalizeConfig& config) noexcept {
   constexpr std::size_t kAlignment = 64;  // per allocation, at most
   const std::size_t n = config.particle_count;
-  return kGaussianTableSize * sizeof(float) + 10 * n * sizeof(double) +
+  return kGaussianTableSize * sizeof(float) + 14 * n * sizeof(double) +
          5 * n * sizeof(std::uint32_t) + config.history_steps * n * sizeof(HistoryEntry) +
          config.history_steps * (sizeof(TimestampNs) + 1) + kFinalCapacity * sizeof(Pose2) +
          20 * kAlignment;
@@ -102,11 +106,12 @@ std::size_t ParticleFilter::arena_bytes(const LocalizeConfig& config) noexcept {
 std::size_t ParticleFilter::memory_bytes() const noexcept {
   return gaussian_table_.size_bytes() + x_m_.size_bytes() + y_m_.size_bytes() +
          yaw_rad_.size_bytes() + cos_yaw_.size_bytes() + sin_yaw_.size_bytes() +
-         scale_.size_bytes() + yaw_rate_bias_radps_.size_bytes() + weight_.size_bytes() +
-         ancestor_.size_bytes() + chosen_.size_bytes() + scratch_.size_bytes() +
-         history_.size_bytes() + history_stamps_.size_bytes() + history_identity_.size_bytes() +
-         trace_.size_bytes() + trace_weight_.size_bytes() + lineage_slot_.size_bytes() +
-         lineage_seen_.size_bytes() + final_.size_bytes();
+         scale_.size_bytes() + yaw_rate_bias_radps_.size_bytes() + gps_slow_x_m_.size_bytes() +
+         gps_slow_y_m_.size_bytes() + gps_fast_x_m_.size_bytes() + gps_fast_y_m_.size_bytes() +
+         weight_.size_bytes() + ancestor_.size_bytes() + chosen_.size_bytes() +
+         scratch_.size_bytes() + history_.size_bytes() + history_stamps_.size_bytes() +
+         history_identity_.size_bytes() + trace_.size_bytes() + trace_weight_.size_bytes() +
+         lineage_slot_.size_bytes() + lineage_seen_.size_bytes() + final_.size_bytes();
 }
 
 double ParticleFilter::gaussian() noexcept {
@@ -170,54 +175,117 @@ void ParticleFilter::predict(TimestampNs stamp_ns, double distance_m,
 }
 
 double ParticleFilter::fix_sigma_m(const GpsObservation& fix) const noexcept {
+  // Per axis: the horizontal RMS is UERE x HDOP, shared by east and north.
   const double sigma = config_.user_range_error_m * std::max(fix.hdop, 0.0) *
-                       (fix.differential ? config_.dgps_sigma_factor : 1.0);
+                       (fix.differential ? config_.dgps_sigma_factor : 1.0) / std::numbers::sqrt2;
   return std::max(sigma, config_.min_gps_sigma_m);
 }
 
-GpsOutcome ParticleFilter::update(const GpsObservation& fix) noexcept {
+ParticleFilter::FixError ParticleFilter::fix_error(const GpsObservation& fix) const noexcept {
   const double sigma_m = fix_sigma_m(fix);
+  const double white_m = config_.gps_white_sigma_m;
+  FixError error;
+  error.slow_variance_m2 = config_.gps_bias_share * sigma_m * sigma_m;
+  error.fast_variance_m2 =
+      std::max(0.0, (1.0 - config_.gps_bias_share) * sigma_m * sigma_m - white_m * white_m);
+  error.white_variance_m2 = white_m * white_m;
+  return error;
+}
+
+GpsOutcome ParticleFilter::update(const GpsObservation& fix) noexcept {
+  const FixError error = fix_error(fix);
   if (!started_) {
     start_at(fix, config_.initial_position_sigma_m, false);
     return GpsOutcome::kStarted;
   }
-  // An outlier test on the estimate: the fix against the particles' mean, allowing for the
-  // fix's sigma and the particles' own spread.
-  const PositionStats where = position_stats();
-  const double spread_m = where.spread_m;
-  const double innovation_m = std::hypot(fix.east_m - where.mean_x_m, fix.north_m - where.mean_y_m);
-  const double gate_m =
-      config_.outlier_gate_sigmas * std::sqrt(sigma_m * sigma_m + spread_m * spread_m);
-  if (innovation_m > gate_m) {
+  advance_gps_error(seconds_from_ns(fix.stamp_ns - gps_error_stamp_ns_), error);
+  gps_error_stamp_ns_ = std::max(gps_error_stamp_ns_, fix.stamp_ns);
+  if (is_outlier(fix, error)) {
     ++counters_.fixes_rejected;
     if (++rejected_in_a_row_ < config_.max_rejected_fixes) {
       return GpsOutcome::kRejected;
     }
     // GPS has disagreed for too long: the filter is wrong, not the receiver.
     ++counters_.recoveries;
-    start_at(fix, std::max(sigma_m, config_.initial_position_sigma_m), true);
+    start_at(fix, std::max(fix_sigma_m(fix), config_.initial_position_sigma_m), true);
     return GpsOutcome::kRecovered;
   }
   rejected_in_a_row_ = 0;
   ++counters_.fixes_used;
-  const double since_last_s = have_fix_stamp_
-                                  ? std::max(seconds_from_ns(fix.stamp_ns - last_fix_ns_), 1e-3)
-                                  : config_.gps_correlation_s;
-  have_fix_stamp_ = true;
-  last_fix_ns_ = fix.stamp_ns;
-  const double correlated = std::sqrt(std::max(1.0, config_.gps_correlation_s / since_last_s));
-  weigh(fix, sigma_m, sigma_m * correlated);
+  weigh(fix, error);
   if (effective_particles() < config_.resample_effective_fraction * static_cast<double>(count_)) {
     resample();
   }
   return GpsOutcome::kUsed;
 }
 
+void ParticleFilter::advance_gps_error(double dt_s, const FixError& error) noexcept {
+  // Both parts of the receiver's error are Gauss-Markov processes: their means decay towards
+  // zero and their covariance towards the stationary one. The covariance is the same for
+  // every particle (the same fixes at the same times), so it is kept once.
+  const double keep_slow = std::exp(-std::max(dt_s, 0.0) / config_.gps_bias_correlation_s);
+  const double keep_fast = config_.gps_noise_correlation_s > 0.0
+                               ? std::exp(-std::max(dt_s, 0.0) / config_.gps_noise_correlation_s)
+                               : 0.0;
+  for (std::size_t i = 0; i < count_; ++i) {
+    gps_slow_x_m_[i] *= keep_slow;
+    gps_slow_y_m_[i] *= keep_slow;
+    gps_fast_x_m_[i] *= keep_fast;
+    gps_fast_y_m_[i] *= keep_fast;
+  }
+  GpsErrorCovariance& p = gps_covariance_;
+  p.slow_slow =
+      keep_slow * keep_slow * p.slow_slow + (1.0 - keep_slow * keep_slow) * error.slow_variance_m2;
+  p.fast_fast =
+      keep_fast * keep_fast * p.fast_fast + (1.0 - keep_fast * keep_fast) * error.fast_variance_m2;
+  p.slow_fast *= keep_slow * keep_fast;
+}
+
+double ParticleFilter::fix_innovation_variance_m2(const FixError& error) const noexcept {
+  // Per axis: the fix is position + slow + fast + white.
+  const GpsErrorCovariance& p = gps_covariance_;
+  return p.slow_slow + 2.0 * p.slow_fast + p.fast_fast + error.white_variance_m2;
+}
+
+bool ParticleFilter::is_outlier(const GpsObservation& fix, const FixError& error) const noexcept {
+  // The fix against where the particles expect it (position plus their estimate of the
+  // receiver's error), allowing for the expectation's variance and the particles' spread.
+  const PositionStats where = expected_fix_stats();
+  const double innovation_m = std::hypot(fix.east_m - where.mean_x_m, fix.north_m - where.mean_y_m);
+  const double gate_m =
+      config_.outlier_gate_sigmas *
+      std::sqrt(2.0 * fix_innovation_variance_m2(error) + where.spread_m * where.spread_m);
+  return innovation_m > gate_m;
+}
+
 void ParticleFilter::start_at(const GpsObservation& fix, double sigma_m,
                               bool keep_heading) noexcept {
+  // Where the robot may be, given the fix: around it by sigma_m. Each particle's estimate of
+  // the receiver's error is then what the fix says it is (fix - position), shared between the
+  // error's parts by their variances.
+  const FixError error = fix_error(fix);
+  const double total_m2 = error.slow_variance_m2 + error.fast_variance_m2 + error.white_variance_m2;
+  const double slow_gain = error.slow_variance_m2 / total_m2;
+  const double fast_gain = error.fast_variance_m2 / total_m2;
+  gps_covariance_.slow_slow = error.slow_variance_m2 * (1.0 - slow_gain);
+  gps_covariance_.fast_fast = error.fast_variance_m2 * (1.0 - fast_gain);
+  gps_covariance_.slow_fast = -slow_gain * error.fast_variance_m2;
+  // Particles drawn wider than the fix's own error are weighed back to it (importance
+  // weights: the fix's density over the drawing's), so that a particle far from the fix does
+  // not start as likely as one near it.
+  const double draw_variance_m2 = std::max(sigma_m * sigma_m, total_m2);
+  const double draw_sigma_m = std::sqrt(draw_variance_m2);
+  const double reweigh = 0.5 / total_m2 - 0.5 / draw_variance_m2;
   for (std::size_t i = 0; i < count_; ++i) {
-    x_m_[i] = fix.east_m + sigma_m * gaussian();
-    y_m_[i] = fix.north_m + sigma_m * gaussian();
+    x_m_[i] = fix.east_m + draw_sigma_m * gaussian();
+    y_m_[i] = fix.north_m + draw_sigma_m * gaussian();
+    const double dx = x_m_[i] - fix.east_m;
+    const double dy = y_m_[i] - fix.north_m;
+    weight_[i] = std::exp(-(dx * dx + dy * dy) * reweigh);
+    gps_slow_x_m_[i] = slow_gain * (fix.east_m - x_m_[i]);
+    gps_slow_y_m_[i] = slow_gain * (fix.north_m - y_m_[i]);
+    gps_fast_x_m_[i] = fast_gain * (fix.east_m - x_m_[i]);
+    gps_fast_y_m_[i] = fast_gain * (fix.north_m - y_m_[i]);
     if (!keep_heading) {
       // Unknown heading: spread evenly over initial_yaw_sigma_rad either side of east.
       const double share = (static_cast<double>(i) + 0.5) / static_cast<double>(count_);
@@ -227,8 +295,8 @@ void ParticleFilter::start_at(const GpsObservation& fix, double sigma_m,
     }
     cos_yaw_[i] = std::cos(yaw_rad_[i]);
     sin_yaw_[i] = std::sin(yaw_rad_[i]);
-    weight_[i] = 1.0 / static_cast<double>(count_);
   }
+  normalize_weights();
   if (!started_ || !keep_heading) {
     // A new start: the history starts over too.
     history_size_ = 0;
@@ -239,35 +307,49 @@ void ParticleFilter::start_at(const GpsObservation& fix, double sigma_m,
   }
   started_ = true;
   rejected_in_a_row_ = 0;
+  gps_error_stamp_ns_ = fix.stamp_ns;
   const TimestampNs stamp_ns = std::max(fix.stamp_ns, last_stamp_ns_);
   push_history(stamp_ns);
 }
 
-void ParticleFilter::weigh(const GpsObservation& fix, double sigma_m,
-                           double weighing_sigma_m) noexcept {
-  // The paper's observation model: a Gaussian of the distance to the fix (with the sigma that
-  // allows for the error's correlation). Particles beyond the gate (of the fix's own sigma)
-  // get no weight: the paper does not resample them.
-  const double inverse_two_variance = 0.5 / (weighing_sigma_m * weighing_sigma_m);
+void ParticleFilter::weigh(const GpsObservation& fix, const FixError& error) noexcept {
+  // The paper's observation model, a Gaussian of the distance to the fix, here from where
+  // each particle expects the fix: its position plus its estimate of the receiver's error.
+  // Particles beyond the gate get no weight: the paper does not resample them. Then each
+  // particle's error estimate takes its share of the innovation: a Kalman update whose gain
+  // is the same for every particle.
+  const double innovation_variance_m2 = fix_innovation_variance_m2(error);
+  const double inverse_two_variance =
+      0.5 / (config_.gps_likelihood_inflation * innovation_variance_m2);
   const double gate_squared =
-      config_.resample_gate_sigmas * config_.resample_gate_sigmas * sigma_m * sigma_m;
+      config_.resample_gate_sigmas * config_.resample_gate_sigmas * innovation_variance_m2;
+  GpsErrorCovariance& p = gps_covariance_;
+  const double slow_gain = (p.slow_slow + p.slow_fast) / innovation_variance_m2;
+  const double fast_gain = (p.slow_fast + p.fast_fast) / innovation_variance_m2;
   double total = 0.0;
   for (std::size_t i = 0; i < count_; ++i) {
-    const double dx = x_m_[i] - fix.east_m;
-    const double dy = y_m_[i] - fix.north_m;
+    const double dx = fix.east_m - x_m_[i] - gps_slow_x_m_[i] - gps_fast_x_m_[i];
+    const double dy = fix.north_m - y_m_[i] - gps_slow_y_m_[i] - gps_fast_y_m_[i];
     const double squared = dx * dx + dy * dy;
+    scratch_[i] = squared;
     weight_[i] *= squared > gate_squared ? 0.0 : std::exp(-squared * inverse_two_variance);
     total += weight_[i];
+    gps_slow_x_m_[i] += slow_gain * dx;
+    gps_slow_y_m_[i] += slow_gain * dy;
+    gps_fast_x_m_[i] += fast_gain * dx;
+    gps_fast_y_m_[i] += fast_gain * dy;
   }
   if (total <= 0.0) {
     // Every particle beyond the gate, yet the fix passed the outlier test (the particles are
     // spread wide): keep them all, weighed by distance alone.
     for (std::size_t i = 0; i < count_; ++i) {
-      const double dx = x_m_[i] - fix.east_m;
-      const double dy = y_m_[i] - fix.north_m;
-      weight_[i] = 1.0 / (1.0 + (dx * dx + dy * dy) * inverse_two_variance);
+      weight_[i] = 1.0 / (1.0 + scratch_[i] * inverse_two_variance);
     }
   }
+  // P - K S K^T.
+  p.slow_slow -= slow_gain * slow_gain * innovation_variance_m2;
+  p.slow_fast -= slow_gain * fast_gain * innovation_variance_m2;
+  p.fast_fast -= fast_gain * fast_gain * innovation_variance_m2;
   normalize_weights();
 }
 
@@ -318,6 +400,10 @@ void ParticleFilter::resample() noexcept {
   gather(sin_yaw_);
   gather(scale_);
   gather(yaw_rate_bias_radps_);
+  gather(gps_slow_x_m_);
+  gather(gps_slow_y_m_);
+  gather(gps_fast_x_m_);
+  gather(gps_fast_y_m_);
   // The ancestry follows the copies (trace_ is free scratch between calls).
   for (std::size_t i = 0; i < count_; ++i) {
     trace_[i] = ancestor_[chosen_[i]];
@@ -469,12 +555,6 @@ std::size_t ParticleFilter::smoothed_window(std::span<Pose2> out) const noexcept
   return n;
 }
 
-std::size_t ParticleFilter::best_particle() const noexcept {
-  return static_cast<std::size_t>(
-      std::max_element(weight_.begin(), weight_.begin() + static_cast<std::ptrdiff_t>(count_)) -
-      weight_.begin());
-}
-
 bool ParticleFilter::pose_at(TimestampNs stamp_ns, Pose2& out) const noexcept {
   if (!started_ || history_size_ == 0) {
     return false;
@@ -483,15 +563,16 @@ bool ParticleFilter::pose_at(TimestampNs stamp_ns, Pose2& out) const noexcept {
   if (stamp_ns < history_stamps_[oldest_slot] || stamp_ns > last_stamp_ns_) {
     return false;
   }
-  // Walk the best particle's ancestry from now back to the step at or before `stamp_ns`.
-  const std::size_t best = best_particle();
-  Pose2 later{last_stamp_ns_, x_m_[best], y_m_[best], yaw_rad_[best]};
-  std::uint32_t index = ancestor_[best];
+  // On the smoothed path: the current particles' weighted ancestry at the history steps, as
+  // smoothed_window() gives it, and their weighted mean after the newest step. One particle's
+  // path would carry that particle's own noise (degrees of heading with thousands of them).
+  Pose2 later = estimate();
+  start_lineages();
   for (std::size_t age = 0; age < history_size_; ++age) {
-    const std::size_t slot = slot_of_age(age);
-    const HistoryEntry& e = history_[slot * count_ + index];
-    const Pose2 earlier{history_stamps_[slot], static_cast<double>(e.x_m),
-                        static_cast<double>(e.y_m), static_cast<double>(e.yaw_rad)};
+    if (age > 0) {
+      step_lineages_back(age - 1);
+    }
+    const Pose2 earlier = lineage_pose(age);
     if (earlier.stamp_ns <= stamp_ns) {
       const double span_s = seconds_from_ns(later.stamp_ns - earlier.stamp_ns);
       const double f = span_s > 0.0 ? seconds_from_ns(stamp_ns - earlier.stamp_ns) / span_s : 0.0;
@@ -502,7 +583,6 @@ bool ParticleFilter::pose_at(TimestampNs stamp_ns, Pose2& out) const noexcept {
       return true;
     }
     later = earlier;
-    index = e.parent;
   }
   return false;
 }
@@ -523,15 +603,30 @@ Pose2 ParticleFilter::estimate() const noexcept {
 }
 
 ParticleFilter::PositionStats ParticleFilter::position_stats() const noexcept {
+  return weighted_stats(false);
+}
+
+ParticleFilter::PositionStats ParticleFilter::expected_fix_stats() const noexcept {
+  return weighted_stats(true);
+}
+
+ParticleFilter::PositionStats ParticleFilter::weighted_stats(bool with_gps_error) const noexcept {
+  // The weighted mean and spread of the positions, or of the fixes the particles expect.
+  const auto x_at = [&](std::size_t i) {
+    return x_m_[i] + (with_gps_error ? gps_slow_x_m_[i] + gps_fast_x_m_[i] : 0.0);
+  };
+  const auto y_at = [&](std::size_t i) {
+    return y_m_[i] + (with_gps_error ? gps_slow_y_m_[i] + gps_fast_y_m_[i] : 0.0);
+  };
   PositionStats stats;
   for (std::size_t i = 0; i < count_; ++i) {
-    stats.mean_x_m += weight_[i] * x_m_[i];
-    stats.mean_y_m += weight_[i] * y_m_[i];
+    stats.mean_x_m += weight_[i] * x_at(i);
+    stats.mean_y_m += weight_[i] * y_at(i);
   }
   double variance = 0.0;
   for (std::size_t i = 0; i < count_; ++i) {
-    const double dx = x_m_[i] - stats.mean_x_m;
-    const double dy = y_m_[i] - stats.mean_y_m;
+    const double dx = x_at(i) - stats.mean_x_m;
+    const double dy = y_at(i) - stats.mean_y_m;
     variance += weight_[i] * (dx * dx + dy * dy);
   }
   stats.spread_m = std::sqrt(variance);

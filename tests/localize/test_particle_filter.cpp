@@ -1,6 +1,6 @@
 // The particle filter on a synthetic drive whose truth is known: a loop around a block with
 // the simulator's error models (tyre scale, gyroscope bias and noise, slip, a GPS error of 2 m
-// that wanders with a 60 s correlation time).
+// RMS: multipath correlated over 2 s and a slow part that wanders with a 60 s correlation time).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -18,19 +18,28 @@ namespace {
 
 using namespace synthetic;  // NOLINT(google-build-using-namespace): the drive and its scoring
 
+// Tests of behaviour, not of the default's accuracy, run 1,000 particles: a quarter of the
+// time, which counts under QEMU.
+LocalizeConfig behaviour_config() {
+  LocalizeConfig config;
+  config.particle_count = 1000;
+  return config;
+}
+
 TEST(ParticleFilter, FindsItsHeadingAndTracksTheLoopBetterThanGps) {
   const DriveOptions options;
   FilterFixture fixture;
   const RunErrors errors = run(fixture.filter, drive(options), options);
-  std::printf("filter %.2f m, smoothed %.2f m, gps %.2f m, heading %.2f deg\n", errors.filter_rms_m,
-              errors.smoothed_rms_m, errors.gps_rms_m, errors.heading_rms_deg);
-  // The issue asks for half the GPS error and 2 deg; this drive's GPS error wanders with a 60 s
-  // correlation time, so a 300 s drive averages only a few independent errors. These bounds
-  // are what the filter reaches now (docs/localize.md), kept so it cannot get worse unseen.
+  std::printf("filter %.2f m, smoothed %.2f m, gps %.2f m, heading %.2f deg, smoothed %.2f deg\n",
+              errors.filter_rms_m, errors.smoothed_rms_m, errors.gps_rms_m, errors.heading_rms_deg,
+              errors.smoothed_heading_rms_deg);
+  // The issue's targets for the smoothed trajectory: at most half the GPS error, 2 deg of
+  // heading. (Over ten drives the mean is half the GPS error: bench_localize, docs/localize.md.)
   EXPECT_LT(errors.filter_rms_m, errors.gps_rms_m);
   EXPECT_LT(errors.smoothed_rms_m, errors.filter_rms_m);
-  EXPECT_LT(errors.smoothed_rms_m, 0.85 * errors.gps_rms_m);
-  EXPECT_LT(errors.heading_rms_deg, 4.0);
+  EXPECT_LT(errors.smoothed_rms_m, 0.5 * errors.gps_rms_m);
+  EXPECT_LT(errors.smoothed_heading_rms_deg, 2.0);
+  EXPECT_LT(errors.heading_rms_deg, 3.0);
   EXPECT_EQ(fixture.filter.counters().recoveries, 0u);
 }
 
@@ -38,7 +47,7 @@ TEST(ParticleFilter, LearnsTheGyroscopeBias) {
   // The survivors carry the gyroscope's bias. (Their distance scale stays near 1 on this loop:
   // 1.5 % of a 60 m leg is less than the GPS error; docs/localize.md.)
   DriveOptions options;
-  FilterFixture fixture;
+  FilterFixture fixture(behaviour_config());
   static_cast<void>(run(fixture.filter, drive(options), options));
   EXPECT_NEAR(fixture.filter.mean_yaw_rate_bias_radps(), options.yaw_rate_bias_radps, 0.0015);
 }
@@ -47,7 +56,7 @@ TEST(ParticleFilter, BridgesAThirtySecondOutage) {
   DriveOptions options;
   options.outage_from_s = 150.0;
   options.outage_to_s = 180.0;
-  FilterFixture fixture;
+  FilterFixture fixture(behaviour_config());
   const RunErrors errors = run(fixture.filter, drive(options), options);
   std::printf("worst during the outage %.2f m\n", errors.worst_in_outage_m);
   EXPECT_LT(errors.worst_in_outage_m, 5.0);
@@ -59,7 +68,7 @@ TEST(ParticleFilter, LeavesOutAMultipathJumpAndStartsOverWhenGpsDisagreesForLong
   DriveOptions options;
   options.duration_s = 120.0;
   std::vector<Sample> samples = drive(options);
-  LocalizeConfig config;
+  const LocalizeConfig config = behaviour_config();
   FilterFixture fixture(config);
   ParticleFilter& filter = fixture.filter;
   std::size_t k = 0;
@@ -104,8 +113,8 @@ TEST(ParticleFilter, TheSameInputsAndSeedGiveTheSameTrajectoryBitForBit) {
   DriveOptions options;
   options.duration_s = 90.0;
   const std::vector<Sample> samples = drive(options);
-  FilterFixture a;
-  FilterFixture b;
+  FilterFixture a(behaviour_config());
+  FilterFixture b(behaviour_config());
   for (const Sample& s : samples) {
     for (ParticleFilter* f : {&a.filter, &b.filter}) {
       f->predict(s.stamp_ns, s.distance_m, s.yaw_rate_radps);
@@ -121,11 +130,11 @@ TEST(ParticleFilter, TheSameInputsAndSeedGiveTheSameTrajectoryBitForBit) {
   }
 }
 
-TEST(ParticleFilter, PoseAtFollowsTheBestParticleInsideTheWindow) {
+TEST(ParticleFilter, PoseAtFollowsTheSmoothedPathInsideTheWindow) {
   DriveOptions options;
   options.duration_s = 100.0;
   const std::vector<Sample> samples = drive(options);
-  FilterFixture fixture;
+  FilterFixture fixture(behaviour_config());
   for (const Sample& s : samples) {
     fixture.filter.predict(s.stamp_ns, s.distance_m, s.yaw_rate_radps);
     if (s.has_fix) {
@@ -137,7 +146,7 @@ TEST(ParticleFilter, PoseAtFollowsTheBestParticleInsideTheWindow) {
     Pose2 pose;
     ASSERT_TRUE(fixture.filter.pose_at(static_cast<TimestampNs>(t_s * 1e9), pose)) << t_s;
     const Pose2& truth = samples[static_cast<std::size_t>(t_s * 100.0) - 1].truth;
-    EXPECT_LT(std::hypot(pose.x_m - truth.x_m, pose.y_m - truth.y_m), 4.0) << t_s;
+    EXPECT_LT(std::hypot(pose.x_m - truth.x_m, pose.y_m - truth.y_m), 3.0) << t_s;
     EXPECT_LT(heading_error_rad(pose.yaw_rad, truth.yaw_rad), 0.1) << t_s;
   }
   Pose2 pose;

@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "blockmap/core/arena.hpp"
+#include "blockmap/localize/localizer.hpp"
 #include "blockmap/localize/particle_filter.hpp"
 #include "memory_assertions.hpp"
 
@@ -43,6 +44,39 @@ TEST(LocalizeBudget, StepsAllocateNothingAfterInitAndFitTheirBudget) {
   EXPECT_GT(finalized, 100u);
   EXPECT_GT(filter.counters().resamplings, 0u);
   EXPECT_LE(filter.memory_bytes(), arena.used_bytes());
+  EXPECT_EQ(arena.failed_allocations().value(), 0u);
+}
+
+TEST(LocalizeBudget, TheLocalizerAllocatesNothingAfterInitEither) {
+  LocalizerConfig config;
+  config.filter.particle_count = 300;
+  config.filter.history_steps = 32;
+  const std::size_t budget = Localizer::arena_bytes(config);
+  Arena arena(budget);
+  Localizer localizer;
+  localizer.init(arena, config);
+  arena.seal();
+  std::array<Pose3, 32> poses{};
+  std::size_t finalized = 0;
+  EXPECT_NO_ALLOCATIONS({
+    msg::OdometrySample odometry;
+    msg::ImuSample imu;
+    for (int k = 1; k <= 3000; ++k) {
+      const TimestampNs stamp = TimestampNs{k} * 10'000'000;
+      odometry.header.stamp_ns = stamp;
+      imu.header.stamp_ns = stamp;
+      odometry.fore_aft_distance_m = 0.01 * k;
+      imu.pitch_rad = 0.02 * std::sin(0.1 * k);
+      localizer.on_base(odometry, imu);
+      if (k % 25 == 0) {
+        static_cast<void>(localizer.on_fix(GpsObservation{stamp, 0.01 * k, 0.0, 1.0, false}, 1.3));
+      }
+      finalized += localizer.drain_final(poses);
+    }
+    static_cast<void>(localizer.smoothed_window(poses));
+  });
+  EXPECT_GT(finalized, 50u);
+  EXPECT_LE(localizer.memory_bytes(), arena.used_bytes());
   EXPECT_EQ(arena.failed_allocations().value(), 0u);
 }
 

@@ -365,26 +365,36 @@ TEST(Simulation, GpsErrorStatisticsMatchTheConfiguration) {
   RobotSpec robot = robot_without_lasers();
   robot.gps.correlation_time_s = 10.0;  // many independent samples in a short run
   robot.gps.horizontal_error_rms_m = 2.0;
+  robot.gps.multipath_error_rms_m = 1.6;  // the slow part: 1.2 m
+  robot.gps.multipath_correlation_s = 2.0;
   Simulation simulation(straight_road(2400.0), robot, SimOptions{});
   StateSink sink;
   simulation.run(sink);
   ASSERT_GT(sink.gps.size(), 7000u);
   double sum_squares = 0.0;
-  double lag_product = 0.0;
-  double lag_count = 0.0;
-  const auto lag = static_cast<std::size_t>(robot.gps.correlation_time_s * robot.gps.rate_hz);
-  for (std::size_t i = 0; i < sink.gps.size(); ++i) {
-    ASSERT_TRUE(sink.gps[i].fix) << "open sky";
-    sum_squares += sink.gps[i].error_m.head<2>().squaredNorm();
-    if (i >= lag) {
-      lag_product += sink.gps[i].error_m.head<2>().dot(sink.gps[i - lag].error_m.head<2>());
-      lag_count += 1.0;
-    }
+  for (const GpsTruth& epoch : sink.gps) {
+    ASSERT_TRUE(epoch.fix) << "open sky";
+    sum_squares += epoch.error_m.head<2>().squaredNorm();
   }
   const double mean_square = sum_squares / static_cast<double>(sink.gps.size());
   EXPECT_NEAR(std::sqrt(mean_square), 2.0, 0.2);
-  // A Gauss-Markov error keeps exp(-1) of its correlation one correlation time later.
-  EXPECT_NEAR(lag_product / lag_count / mean_square, std::exp(-1.0), 0.12);
+  // Each part is a Gauss-Markov process, which keeps exp(-lag / tau) of itself after a lag:
+  // the autocorrelation is the two parts' mix.
+  const auto autocorrelation = [&](double lag_s) {
+    const auto lag = static_cast<std::size_t>(lag_s * robot.gps.rate_hz);
+    double product = 0.0;
+    for (std::size_t i = lag; i < sink.gps.size(); ++i) {
+      product += sink.gps[i].error_m.head<2>().dot(sink.gps[i - lag].error_m.head<2>());
+    }
+    return product / static_cast<double>(sink.gps.size() - lag) / mean_square;
+  };
+  const auto expected = [&](double lag_s) {
+    const double multipath = 1.6 * 1.6;
+    const double slow = 2.0 * 2.0 - multipath;
+    return (slow * std::exp(-lag_s / 10.0) + multipath * std::exp(-lag_s / 2.0)) / 4.0;
+  };
+  EXPECT_NEAR(autocorrelation(2.0), expected(2.0), 0.08);
+  EXPECT_NEAR(autocorrelation(10.0), expected(10.0), 0.08);
 }
 
 TEST(Simulation, TallBuildingsHideSatellitesAndCanLoseTheFix) {

@@ -1,6 +1,7 @@
 // A synthetic drive with known truth for the particle filter: 300 s around a 60 m x 40 m
 // loop at 1.2 m/s with the simulator's error models (tyre scale, gyroscope bias and noise,
-// slip, a GPS error of 2 m that wanders with a 60 s correlation time), and the scoring of a
+// slip, a GPS error of 2 m RMS: 1.6 m of multipath correlated over 2 s and 1.2 m that wanders
+// with a 60 s correlation time, as config/robots/paper_rmp.toml), and the scoring of a
 // filter run over it. Shared by tests/localize and the accuracy-versus-particles benchmark.
 #pragma once
 
@@ -24,8 +25,10 @@ struct DriveOptions {
   double duration_s = 300.0;
   double distance_scale = 1.015;  // what the wheels report, per true metre
   double yaw_rate_bias_radps = 0.005;
-  double gps_error_rms_m = 2.0;
+  double gps_error_rms_m = 2.0;  // both parts together
+  double gps_multipath_rms_m = 1.6;
   double gps_correlation_s = 60.0;
+  double gps_multipath_correlation_s = 2.0;
   double outage_from_s = -1.0;  // GPS silent in [from, to)
   double outage_to_s = -1.0;
   std::uint64_t seed = 1;
@@ -54,9 +57,27 @@ inline std::vector<Sample> drive(const DriveOptions& options) {
   int leg = 0;
   double leg_left = legs[0];
   double turn_left = 0.0;
-  const double keep = std::exp(-0.25 / options.gps_correlation_s);
-  double gps_ex = options.gps_error_rms_m / std::numbers::sqrt2 * random.gaussian();
-  double gps_ey = options.gps_error_rms_m / std::numbers::sqrt2 * random.gaussian();
+  // Each part of the GPS error is a Gauss-Markov process per axis, from its stationary state.
+  struct Wander {
+    double keep = 0.0;
+    double sigma = 0.0;
+    double x = 0.0;
+    double y = 0.0;
+    void step(Random& random) {
+      x = keep * x + std::sqrt(1.0 - keep * keep) * sigma * random.gaussian();
+      y = keep * y + std::sqrt(1.0 - keep * keep) * sigma * random.gaussian();
+    }
+  };
+  const double slow_rms =
+      std::sqrt(std::max(0.0, options.gps_error_rms_m * options.gps_error_rms_m -
+                                  options.gps_multipath_rms_m * options.gps_multipath_rms_m));
+  Wander slow{std::exp(-0.25 / options.gps_correlation_s), slow_rms / std::numbers::sqrt2};
+  Wander multipath{std::exp(-0.25 / options.gps_multipath_correlation_s),
+                   options.gps_multipath_rms_m / std::numbers::sqrt2};
+  for (Wander* w : {&slow, &multipath}) {
+    w->x = w->sigma * random.gaussian();
+    w->y = w->sigma * random.gaussian();
+  }
   const auto steps = static_cast<int>(options.duration_s / dt);
   for (int k = 1; k <= steps; ++k) {
     const double rate = turn_left > 0.0 ? corner_rate : 0.0;
@@ -77,13 +98,12 @@ inline std::vector<Sample> drive(const DriveOptions& options) {
     s.yaw_rate_radps = rate + options.yaw_rate_bias_radps + 0.01 * random.gaussian();
     s.truth = Pose2{s.stamp_ns, x, y, std::remainder(yaw, 2.0 * kPi)};
     if (k % kOdometryPerFix == 0) {
-      gps_ex = keep * gps_ex + std::sqrt(1.0 - keep * keep) * options.gps_error_rms_m /
-                                   std::numbers::sqrt2 * random.gaussian();
-      gps_ey = keep * gps_ey + std::sqrt(1.0 - keep * keep) * options.gps_error_rms_m /
-                                   std::numbers::sqrt2 * random.gaussian();
+      slow.step(random);
+      multipath.step(random);
       const double t = static_cast<double>(k) * dt;
       s.has_fix = !(t >= options.outage_from_s && t < options.outage_to_s);
-      s.fix = GpsObservation{s.stamp_ns, x + gps_ex, y + gps_ey, 0.9, false};
+      s.fix = GpsObservation{s.stamp_ns, x + slow.x + multipath.x, y + slow.y + multipath.y, 0.9,
+                             false};
     }
     samples.push_back(s);
   }
@@ -109,6 +129,7 @@ struct RunErrors {
   double smoothed_rms_m = 0.0;
   double gps_rms_m = 0.0;
   double heading_rms_deg = 0.0;
+  double smoothed_heading_rms_deg = 0.0;
   double worst_in_outage_m = 0.0;
 };
 
@@ -154,6 +175,7 @@ inline RunErrors run(ParticleFilter& filter, const std::vector<Sample>& samples,
   smoothed.insert(smoothed.end(), rest.begin(), rest.end());
   // Smoothed poses are at history steps: compare each with the truth at its stamp.
   double smoothed_sq = 0.0;
+  double smoothed_heading_sq = 0.0;
   std::size_t smoothed_scored = 0;
   for (const Pose2& p : smoothed) {
     if (p.stamp_ns < settle_ns) {
@@ -162,6 +184,7 @@ inline RunErrors run(ParticleFilter& filter, const std::vector<Sample>& samples,
     const auto index = static_cast<std::size_t>(p.stamp_ns / kOdometryPeriodNs) - 1;
     const Pose2& truth = samples[std::min(index, samples.size() - 1)].truth;
     smoothed_sq += std::pow(p.x_m - truth.x_m, 2) + std::pow(p.y_m - truth.y_m, 2);
+    smoothed_heading_sq += std::pow(heading_error_rad(p.yaw_rad, truth.yaw_rad), 2);
     ++smoothed_scored;
   }
   errors.filter_rms_m =
@@ -171,6 +194,10 @@ inline RunErrors run(ParticleFilter& filter, const std::vector<Sample>& samples,
   errors.gps_rms_m = std::sqrt(gps_sq / static_cast<double>(std::max<std::size_t>(fixes, 1)));
   errors.smoothed_rms_m =
       std::sqrt(smoothed_sq / static_cast<double>(std::max<std::size_t>(smoothed_scored, 1)));
+  errors.smoothed_heading_rms_deg =
+      std::sqrt(smoothed_heading_sq /
+                static_cast<double>(std::max<std::size_t>(smoothed_scored, 1))) *
+      180.0 / kPi;
   return errors;
 }
 

@@ -1,6 +1,8 @@
 // Runs the blockmap command line in-process, as main() would, and keeps what it printed.
 #pragma once
 
+#include <filesystem>
+#include <fstream>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -25,6 +27,14 @@ inline CliResult run_cli(const std::vector<std::string>& args) {
   std::ostringstream err;
   const int status = run(static_cast<int>(argv.size()), argv.data(), out, err);
   return {status, out.str(), err.str()};
+}
+
+// The whole of a file the command wrote ("" when it is missing).
+inline std::string read_file(const std::filesystem::path& path) {
+  std::ifstream file(path, std::ios::binary);
+  std::ostringstream text;
+  text << file.rdbuf();
+  return text.str();
 }
 
 }  // namespace blockmap::cli::testing

@@ -22,14 +22,8 @@ namespace {
 namespace fs = std::filesystem;
 
 using Result = testing::CliResult;
+using testing::read_file;
 using testing::run_cli;
-
-std::string read_file(const fs::path& path) {
-  std::ifstream file(path, std::ios::binary);
-  std::ostringstream text;
-  text << file.rdbuf();
-  return text.str();
-}
 
 std::vector<nlohmann::json> json_lines(const std::string& text) {
   std::vector<nlohmann::json> lines;

@@ -10,9 +10,10 @@ namespace blockmap::localize {
 
 struct LocalizeConfig {
   // Capacities, fixed at init. A history step is kept every history_interval_s of odometry;
-  // history_steps of them make the fixed lag (512 x 0.25 s: about two minutes).
-  std::size_t particle_count = 2000;
-  std::size_t history_steps = 512;
+  // history_steps of them make the fixed lag (240 x 0.25 s: one minute). 4,000 particles and
+  // a minute of lag: 15 MB (docs/localize.md says why these).
+  std::size_t particle_count = 4000;
+  std::size_t history_steps = 240;
   double history_interval_s = 0.25;
 
   // Action model (the paper: odometry and IMU plus Gaussian noise). Each particle carries its
@@ -29,17 +30,31 @@ struct LocalizeConfig {
   double initial_yaw_sigma_rad = 3.14159265358979;  // unknown heading: the whole circle
 
   // Observation model (the paper: weights from the distance to the GPS fix). The fix's
-  // standard deviation is user_range_error_m times its HDOP, at least min_gps_sigma_m.
-  double user_range_error_m = 2.0;
+  // horizontal RMS error is user_range_error_m times its HDOP (2.2 m x an open-sky HDOP of 0.9:
+  // a 2 m receiver), at least min_gps_sigma_m.
+  double user_range_error_m = 2.2;
   double min_gps_sigma_m = 0.5;
   double dgps_sigma_factor = 0.5;  // DGPS and RTK fixes are better than their HDOP says
-  // A receiver's error wanders slowly: fixes a fraction of a second apart share most of it.
-  // Weighing each as independent would believe GPS hundreds of times over and let the
-  // particles chase its wander. Each fix is weighed with its sigma times
-  // sqrt(gps_correlation_s / time since the last fix): per correlation time, GPS counts once.
-  double gps_correlation_s = 60.0;
-  // The paper's rule: particles farther than this many sigmas from the fix are not resampled.
-  double resample_gate_sigmas = 3.0;
+  // A receiver's error is not independent from fix to fix. gps_bias_share of its variance is
+  // slow (orbits, clocks, the atmosphere: it wanders with gps_bias_correlation_s); the rest,
+  // less a white floor of gps_white_sigma_m, is multipath, correlated over
+  // gps_noise_correlation_s. Both parts are states of each particle, estimated by a Kalman
+  // filter per particle (the particles stay in x, y, yaw), which odometry tells apart from the
+  // motion. Weighing fixes as independent would believe GPS hundreds of times over and let
+  // the particles chase its wander.
+  double gps_bias_share = 0.36;
+  double gps_bias_correlation_s = 60.0;
+  double gps_noise_correlation_s = 2.0;
+  double gps_white_sigma_m = 0.2;
+  // Weights use the innovation's variance times this: a few thousand particles cover five
+  // dimensions thinly, and exact weights let one multipath excursion collapse them onto a
+  // wrong heading. Doubling it halves the mean error over ten drives (docs/localize.md).
+  double gps_likelihood_inflation = 2.0;
+  // The paper's rule: particles farther than this many sigmas (of the innovation) from the
+  // fix are not resampled. At 3 sigma the rule dropped the particles near the truth during
+  // multipath excursions and the filter lost the loop; 5 keeps it as a guard against wild
+  // particles.
+  double resample_gate_sigmas = 5.0;
   // A fix farther than this many sigmas (its own and the particles' spread) from the estimate
   // is an outlier (a multipath jump) and is left out; after max_rejected_fixes such fixes in a
   // row, the filter believes GPS again and starts over around it (recovery after an outage or

@@ -15,6 +15,10 @@
 //    the wrong ones drift away from GPS and are not resampled.
 //  - The fix's reported quality sets its weight: sigma = user range error x HDOP. DGPS and RTK
 //    fixes count more.
+//  - The receiver's error is not white. Its slow part (orbits, clocks, the atmosphere) and its
+//    fast part (multipath) are states of each particle, estimated by a small Kalman filter
+//    per particle (Rao-Blackwellized: the particles stay in x, y, yaw). Odometry tells them
+//    apart from the motion.
 //  - The paper's rule (particles farther than a distance from the fix are not resampled) is
 //    kept. Recovery: a fix that no particle is near is an outlier and is left out. After
 //    several such fixes in a row, GPS is believed and the particles start over around it.
@@ -98,13 +102,17 @@ class ParticleFilter {
   // The smoothed poses of every step still in the window, oldest first (at the end of a run:
   // the rest of the trajectory). Returns how many were written.
   std::size_t smoothed_window(std::span<Pose2> out) const noexcept;
-  // The pose at `stamp_ns` on the best particle's ancestry, interpolated between history
-  // steps (and towards the current pose after the last one); false outside the window.
+  // The pose at `stamp_ns` on the smoothed path, interpolated between history steps (and
+  // towards the current estimate after the newest one); false outside the window.
   bool pose_at(TimestampNs stamp_ns, Pose2& out) const noexcept;
 
   [[nodiscard]] const LocalizeCounters& counters() const noexcept { return counters_; }
   [[nodiscard]] std::size_t particle_count() const noexcept { return count_; }
   [[nodiscard]] std::size_t history_size() const noexcept { return history_size_; }
+  // The stamp of the newest history step (0 before the first).
+  [[nodiscard]] TimestampNs newest_step_ns() const noexcept {
+    return history_size_ == 0 ? 0 : history_stamps_[history_newest_];
+  }
   [[nodiscard]] std::size_t memory_bytes() const noexcept;
 
  private:
@@ -121,10 +129,29 @@ class ParticleFilter {
     double spread_m = 0.0;
   };
   [[nodiscard]] PositionStats position_stats() const noexcept;
+  // Of where the particles expect the next fix: position plus slow GPS error.
+  [[nodiscard]] PositionStats expected_fix_stats() const noexcept;
+  [[nodiscard]] PositionStats weighted_stats(bool with_gps_error) const noexcept;
+  // A fix's error variances per axis, in its three parts.
+  struct FixError {
+    double slow_variance_m2 = 0.0;
+    double fast_variance_m2 = 0.0;
+    double white_variance_m2 = 0.0;
+  };
+  // The covariance of every particle's (slow, fast) error estimate, per axis.
+  struct GpsErrorCovariance {
+    double slow_slow = 0.0;
+    double slow_fast = 0.0;
+    double fast_fast = 0.0;
+  };
   [[nodiscard]] double gaussian() noexcept;
   void start_at(const GpsObservation& fix, double sigma_m, bool keep_heading) noexcept;
   [[nodiscard]] double fix_sigma_m(const GpsObservation& fix) const noexcept;
-  void weigh(const GpsObservation& fix, double sigma_m, double weighing_sigma_m) noexcept;
+  [[nodiscard]] FixError fix_error(const GpsObservation& fix) const noexcept;
+  void advance_gps_error(double dt_s, const FixError& error) noexcept;
+  [[nodiscard]] double fix_innovation_variance_m2(const FixError& error) const noexcept;
+  [[nodiscard]] bool is_outlier(const GpsObservation& fix, const FixError& error) const noexcept;
+  void weigh(const GpsObservation& fix, const FixError& error) noexcept;
   void normalize_weights() noexcept;
   [[nodiscard]] double effective_particles() const noexcept;
   void resample() noexcept;
@@ -139,7 +166,6 @@ class ParticleFilter {
   [[nodiscard]] Pose2 lineage_pose(std::size_t age) const noexcept;
   // The smoothed pose `age` steps back from the newest.
   [[nodiscard]] Pose2 smoothed_at(std::size_t age) const noexcept;
-  [[nodiscard]] std::size_t best_particle() const noexcept;
   [[nodiscard]] std::size_t slot_of_age(std::size_t age) const noexcept;
 
   LocalizeConfig config_;
@@ -157,6 +183,14 @@ class ParticleFilter {
   std::span<double> sin_yaw_;
   std::span<double> scale_;
   std::span<double> yaw_rate_bias_radps_;
+  // Each particle's estimate of the receiver's error, slow and fast parts (the means of its
+  // Kalman filter; the covariance, the same for all, is gps_covariance_).
+  std::span<double> gps_slow_x_m_;
+  std::span<double> gps_slow_y_m_;
+  std::span<double> gps_fast_x_m_;
+  std::span<double> gps_fast_y_m_;
+  GpsErrorCovariance gps_covariance_;
+  TimestampNs gps_error_stamp_ns_ = 0;
   std::span<double> weight_;
   std::span<std::uint32_t> ancestor_;  // each particle's index at the newest history step
   // Resampling's scratch: the chosen indices and a second copy of every quantity.
@@ -186,8 +220,6 @@ class ParticleFilter {
   TimestampNs last_stamp_ns_ = 0;
   TimestampNs next_history_ns_ = 0;
   std::uint32_t rejected_in_a_row_ = 0;
-  bool have_fix_stamp_ = false;
-  TimestampNs last_fix_ns_ = 0;
   LocalizeCounters counters_;
 };
 

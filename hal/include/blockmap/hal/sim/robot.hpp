@@ -79,9 +79,16 @@ struct GpsSpec {
   double rate_hz = 4.0;
   std::uint32_t baud = 9600;
   std::string talker = "GP";
-  double horizontal_error_rms_m = 2.0;  // the receiver's slowly wandering error
+  // The receiver's error budget in two parts. A slow part (satellite orbits and clocks, the
+  // atmosphere) wanders with correlation_time_s. A fast part (multipath and receiver noise,
+  // which change within seconds as the robot moves between buildings) wanders with
+  // multipath_correlation_s. horizontal_error_rms_m is the RMS of the sum; the vertical error
+  // is slow only.
+  double horizontal_error_rms_m = 2.0;
+  double multipath_error_rms_m = 1.6;
   double vertical_error_rms_m = 3.0;
   double correlation_time_s = 60.0;
+  double multipath_correlation_s = 2.0;
   double latency_s = 0.05;  // from the epoch to the first byte of its sentences
   double hdop_open_sky = 0.9;
   int satellites = 10;  // the constellation above the site

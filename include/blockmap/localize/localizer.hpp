@@ -1,0 +1,104 @@
+// The localizer of the pipeline: the particle filter fed with what the devices report. It
+// turns the Segway's integrated odometry into distance increments (and notices when the base
+// resets its integrators), takes the yaw rate from the base's gyroscope, and completes the
+// filter's planar poses into 3D ones with the base's own pitch and roll (the seed: the RMP
+// "pitches considerably", which the scan projector must undo) and a height from GPS.
+//
+// Height: the filter is planar. z is the GPS antenna's height in the local frame less the
+// antenna's height on the robot, low-passed over height_smoothing_s: a city block is nearly
+// flat, and the receiver's vertical error (about 3 m) is larger than any slope the robot sees
+// in a minute. The antenna's horizontal offset on the robot is not modelled (a few
+// centimetres on the paper's robot, against 2 m of GPS error).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+#include "blockmap/core/arena.hpp"
+#include "blockmap/localize/localize_config.hpp"
+#include "blockmap/localize/particle_filter.hpp"
+#include "blockmap/msg/odometry.hpp"
+
+namespace blockmap::localize {
+
+// A pose of the robot frame in the local ENU frame (the columns of trajectory.csv).
+struct Pose3 {
+  TimestampNs stamp_ns = 0;
+  double x_m = 0.0;
+  double y_m = 0.0;
+  double z_m = 0.0;
+  double roll_rad = 0.0;
+  double pitch_rad = 0.0;  // positive nose down, as the RMP reports it
+  double yaw_rad = 0.0;
+};
+
+struct LocalizerConfig {
+  LocalizeConfig filter;
+  double antenna_height_m = 1.3;  // the GPS antenna above the robot frame's origin
+  double height_smoothing_s = 120.0;
+  // A fore/aft increment faster than this is the base resetting its integrators (power
+  // cycle, a reset command), not motion: it is skipped and counted.
+  double max_speed_mps = 10.0;
+};
+
+// Empty when usable, otherwise what is wrong.
+[[nodiscard]] std::string validate(const LocalizerConfig& config);
+
+struct LocalizerCounters {
+  std::uint64_t base_samples = 0;
+  std::uint64_t odometry_jumps = 0;  // integrator resets skipped
+  std::uint64_t stale_samples = 0;   // older than the last one, left out
+};
+
+class Localizer {
+ public:
+  void init(Arena& arena, const LocalizerConfig& config);
+  [[nodiscard]] static std::size_t arena_bytes(const LocalizerConfig& config) noexcept;
+
+  // One status group of the base: its odometry and IMU samples (the same stamp).
+  void on_base(const msg::OdometrySample& odometry, const msg::ImuSample& imu) noexcept;
+  // A GPS fix in the local frame; up_m is the antenna's height in that frame.
+  GpsOutcome on_fix(const GpsObservation& fix, double up_m) noexcept;
+
+  // As the filter's: poses that left the window (each once), the rest of the window, the
+  // pose at a time inside it; with height, pitch and roll.
+  std::size_t drain_final(std::span<Pose3> out) noexcept;
+  std::size_t smoothed_window(std::span<Pose3> out) const noexcept;
+  bool pose_at(TimestampNs stamp_ns, Pose3& out) const noexcept;
+
+  [[nodiscard]] const ParticleFilter& filter() const noexcept { return filter_; }
+  [[nodiscard]] const LocalizerCounters& counters() const noexcept { return counters_; }
+  [[nodiscard]] std::size_t memory_bytes() const noexcept;
+
+ private:
+  // What the filter does not estimate, kept at each of its history steps.
+  struct Attitude {
+    TimestampNs stamp_ns = 0;
+    float z_m = 0.0f;
+    float roll_rad = 0.0f;
+    float pitch_rad = 0.0f;
+  };
+  void record_if_stepped() noexcept;
+  [[nodiscard]] Attitude attitude_at(TimestampNs stamp_ns) const noexcept;
+  [[nodiscard]] Pose3 completed(const Pose2& pose) const noexcept;
+
+  LocalizerConfig config_;
+  ParticleFilter filter_;
+  LocalizerCounters counters_;
+  bool have_base_ = false;
+  TimestampNs last_base_ns_ = 0;
+  double last_fore_aft_m_ = 0.0;
+  double roll_rad_ = 0.0;
+  double pitch_rad_ = 0.0;
+  bool have_height_ = false;
+  double height_m_ = 0.0;
+  TimestampNs last_height_ns_ = 0;
+  std::uint64_t recorded_steps_ = 0;
+  std::span<Attitude> attitudes_;  // a ring, oldest at attitude_first_
+  std::size_t attitude_first_ = 0;
+  std::size_t attitude_count_ = 0;
+  std::span<Pose2> scratch_;  // working space for the planar poses (not state)
+};
+
+}  // namespace blockmap::localize

@@ -1,0 +1,176 @@
+// `blockmap replay` over a simulated run's logs: the CAN and NMEA bytes go through the device
+// layer into the localizer, and trajectory.csv follows the truth better than GPS does.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <numbers>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cli.hpp"
+#include "cli_runner.hpp"
+
+namespace blockmap::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+using Result = testing::CliResult;
+using testing::read_file;
+using testing::run_cli;
+
+struct Row {
+  double t_s, x_m, y_m, z_m, roll_rad, pitch_rad, yaw_rad;
+};
+
+std::vector<Row> trajectory_rows(const std::string& text, std::string& header) {
+  std::istringstream stream(text);
+  std::getline(stream, header);
+  std::vector<Row> rows;
+  for (std::string line; std::getline(stream, line);) {
+    Row r{};
+    EXPECT_EQ(std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf,%lf", &r.t_s, &r.x_m, &r.y_m,
+                          &r.z_m, &r.roll_rad, &r.pitch_rad, &r.yaw_rad),
+              7)
+        << line;
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+// The true pose at t (the truth is at 100 Hz: the nearest sample).
+const nlohmann::json& truth_at(const nlohmann::json& trajectory, double t_s) {
+  const double t0 = trajectory[0]["t_s"].get<double>();
+  const auto index = static_cast<std::size_t>(std::lround((t_s - t0) * 100.0));
+  return trajectory[std::min(index, trajectory.size() - 1)];
+}
+
+class ReplayCommand : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    folder_ = fs::temp_directory_path() / ("blockmap_replay_" + std::to_string(::getpid()));
+    const Result result = run_cli({"simulate", "--world", "usc_block", "--seed", "2",
+                                   "--duration-s", "90", "--out", folder_.string()});
+    ASSERT_EQ(result.status, kExitOk) << result.err;
+    truth_ = nlohmann::json::parse(read_file(folder_ / "truth.json"));
+    const nlohmann::json& o = truth_["origin"];
+    origin_ = std::to_string(o["latitude_deg"].get<double>()) + "," +
+              std::to_string(o["longitude_deg"].get<double>()) + "," +
+              std::to_string(o["height_m"].get<double>());
+  }
+  static void TearDownTestSuite() { fs::remove_all(folder_); }
+
+  static inline fs::path folder_;
+  static inline nlohmann::json truth_;
+  static inline std::string origin_;
+};
+
+TEST_F(ReplayCommand, WritesTheSmoothedTrajectoryCloserToTheTruthThanGps) {
+  const fs::path out = folder_.string() + "_out";
+  // 2,000 particles: a quarter of the default's time under QEMU, and well inside the bounds.
+  const Result result = run_cli({"replay", folder_.string(), "--out", out.string(), "--origin",
+                                 origin_, "--particles", "2000"});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  EXPECT_NE(result.err.find("replay: 9000 base samples"), std::string::npos) << result.err;
+  std::string header;
+  const std::vector<Row> rows = trajectory_rows(read_file(out / "trajectory.csv"), header);
+  EXPECT_EQ(header, "t_s,x_m,y_m,z_m,roll_rad,pitch_rad,yaw_rad");
+  // A pose every 0.25 s from the first fix to the end.
+  ASSERT_GT(rows.size(), 350u);
+  for (std::size_t i = 1; i < rows.size(); ++i) {
+    ASSERT_NEAR(rows[i].t_s - rows[i - 1].t_s, 0.25, 0.011) << i;
+  }
+  // Scored after 45 s, when the heading has been found.
+  const nlohmann::json& trajectory = truth_["trajectory"];
+  const double t0 = trajectory[0]["t_s"].get<double>();
+  double position_sq = 0.0;
+  double heading_sq = 0.0;
+  double pitch_sq = 0.0;
+  double worst_z = 0.0;
+  std::size_t n = 0;
+  for (const Row& r : rows) {
+    if (r.t_s - t0 < 45.0) {
+      continue;
+    }
+    const nlohmann::json& truth = truth_at(trajectory, r.t_s);
+    position_sq += std::pow(r.x_m - truth["x_m"].get<double>(), 2) +
+                   std::pow(r.y_m - truth["y_m"].get<double>(), 2);
+    const double yaw_error =
+        std::remainder(r.yaw_rad - truth["yaw_rad"].get<double>(), 2.0 * std::numbers::pi);
+    heading_sq += yaw_error * yaw_error;
+    pitch_sq += std::pow(r.pitch_rad - truth["pitch_rad"].get<double>(), 2);
+    worst_z = std::max(worst_z, std::abs(r.z_m - truth["z_m"].get<double>()));
+    ++n;
+  }
+  // The GPS error of this run, from the simulator's record of it.
+  std::istringstream gps(read_file(folder_ / "truth_gps.csv"));
+  std::string line;
+  std::getline(gps, line);
+  double gps_sq = 0.0;
+  std::size_t fixes = 0;
+  while (std::getline(gps, line)) {
+    double t = 0, x = 0, y = 0, z = 0, ee = 0, en = 0;
+    if (std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf", &t, &x, &y, &z, &ee, &en) == 6 &&
+        t - t0 >= 45.0) {
+      gps_sq += ee * ee + en * en;
+      ++fixes;
+    }
+  }
+  ASSERT_GT(n, 150u);
+  const double position_rms = std::sqrt(position_sq / static_cast<double>(n));
+  const double gps_rms = std::sqrt(gps_sq / static_cast<double>(fixes));
+  const double heading_rms_deg =
+      std::sqrt(heading_sq / static_cast<double>(n)) * 180.0 / std::numbers::pi;
+  std::printf("position %.2f m (GPS %.2f m), heading %.2f deg, pitch %.4f rad, worst z %.2f m\n",
+              position_rms, gps_rms, heading_rms_deg, std::sqrt(pitch_sq / static_cast<double>(n)),
+              worst_z);
+  EXPECT_LT(position_rms, 0.75 * gps_rms);
+  EXPECT_LT(heading_rms_deg, 3.0);
+  // Pitch is the base's own (its sensor noise is 0.2 deg); height from GPS, smoothed.
+  EXPECT_LT(std::sqrt(pitch_sq / static_cast<double>(n)), 0.01);
+  EXPECT_LT(worst_z, 6.0);
+}
+
+TEST_F(ReplayCommand, WithoutOutWritesTheTrajectoryToStdout) {
+  const Result result = run_cli({"replay", folder_.string(), "--particles", "300"});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  EXPECT_EQ(result.out.rfind("t_s,x_m,y_m,z_m,roll_rad,pitch_rad,yaw_rad\n", 0), 0u);
+  // Anchored at the first good fix: the first pose is within metres of the origin.
+  std::string header;
+  const std::vector<Row> rows = trajectory_rows(result.out, header);
+  ASSERT_FALSE(rows.empty());
+  EXPECT_LT(std::hypot(rows.front().x_m, rows.front().y_m), 10.0);
+  EXPECT_NE(result.err.find("origin "), std::string::npos) << result.err;
+}
+
+TEST(ReplayCommandInput, BadInputGetsOneClearLine) {
+  const fs::path folder =
+      fs::temp_directory_path() / ("blockmap_replay_bad_" + std::to_string(::getpid()));
+  Result result = run_cli({"replay", (folder / "no_such_folder").string()});
+  EXPECT_EQ(result.status, kExitFailure);
+  EXPECT_NE(result.err.find("is not a folder of device logs"), std::string::npos) << result.err;
+  fs::create_directories(folder);
+  result = run_cli({"replay", folder.string(), "--origin", "95,0,0"});
+  EXPECT_EQ(result.status, kExitUsage);
+  EXPECT_NE(result.err.find("--origin must be LAT,LON,HEIGHT"), std::string::npos) << result.err;
+  // A log folder without its GPS log names the missing file.
+  std::ofstream(folder / "rmp.candump") << "(1156255200.010000) can0 400#0000000000000000\n";
+  result = run_cli({"replay", folder.string()});
+  EXPECT_EQ(result.status, kExitFailure);
+  EXPECT_NE(result.err.find("gps.nmea"), std::string::npos) << result.err;
+  // Logs without a usable fix give no pose, and say so.
+  std::ofstream(folder / "gps.nmea") << "$GPGGA,140000.25,,,,,0,00,99.9,,M,,M,,*5D\r\n";
+  result = run_cli({"replay", folder.string()});
+  EXPECT_EQ(result.status, kExitFailure);
+  EXPECT_NE(result.err.find("no pose"), std::string::npos) << result.err;
+  fs::remove_all(folder);
+}
+
+}  // namespace
+}  // namespace blockmap::cli
