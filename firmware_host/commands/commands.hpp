@@ -32,5 +32,7 @@ Command add_planes_command(CLI::App& app);
 Command add_simulate_command(CLI::App& app);
 // `blockmap replay DIR [--out DIR2]`: the onboard pipeline over recorded device logs.
 Command add_replay_command(CLI::App& app);
+// `blockmap import TRAJECTORY --origin ... --out DIR`: device logs from a reference trajectory.
+Command add_import_command(CLI::App& app);
 
 }  // namespace blockmap::cli

@@ -11,6 +11,7 @@
 #include "blockmap/hal/protocol/segway_rmp.hpp"
 #include "blockmap/hal/protocol/sick_lms2xx.hpp"
 #include "blockmap/hal/sim/random.hpp"
+#include "blockmap/hal/sim/sensor_models.hpp"
 #include "blockmap/hal/sim/serial_wire.hpp"
 #include "blockmap/hal/sim/simulation.hpp"
 
@@ -44,17 +45,13 @@ class SimRmp {
   void make_cycle(SimContext& context, SimSink& sink, TimestampNs cycle_ns);
 
   BaseSpec base_;
+  BaseSensing sensing_;
   protocol::segway_rmp::Config codec_;
   SimRandom random_;
   std::uint64_t cycle_ = 0;
   protocol::segway_rmp::StatusFrames frames_{};
   TimestampNs frames_ns_ = 0;
   std::size_t next_frame_ = 8;  // 8: none pending
-  double left_m_ = 0.0;         // the base's integrators (reported, with its errors)
-  double right_m_ = 0.0;
-  double last_true_left_m_ = 0.0;
-  double last_true_right_m_ = 0.0;
-  double battery_v_ = 73.0;
 };
 
 // A SICK LMS2xx in continuous mode on its serial line.
@@ -105,10 +102,6 @@ class SimGps {
   };
   [[nodiscard]] TimestampNs epoch_ns(const SimContext& context, std::uint64_t epoch) const;
   void make_epoch(SimContext& context, SimSink& sink, SimStats& stats);
-  // Per-axis sigma of the slow part of the horizontal error.
-  [[nodiscard]] static double slow_horizontal_sigma_m(const GpsSpec& spec) noexcept;
-  // Both parts of the error, advanced by dt_s.
-  void wander(double dt_s);
   [[nodiscard]] bool blocked(const SimContext& context, const Vec3& antenna,
                              const Satellite& satellite) const;
 
@@ -119,8 +112,7 @@ class SimGps {
   SimRandom random_;
   SerialWire wire_;
   std::vector<Satellite> satellites_;
-  Vec3 slow_error_m_ = Vec3::Zero();       // orbits, clocks, atmosphere
-  Vec2 multipath_error_m_ = Vec2::Zero();  // horizontal, changes within seconds
+  GpsErrorProcess error_;
   std::uint64_t next_epoch_ = 1;
   std::array<char, protocol::nmea::kMaxSentenceBytes> sentence_{};
 };

@@ -47,7 +47,8 @@ SimGps::SimGps(const GpsSpec& spec, const Site& site, std::size_t device, std::u
       frame_(site.origin),
       device_(device),
       random_(seed, "gps"),
-      wire_(spec.baud, static_cast<TimestampNs>(spec.read_interval_s * 1e9), 2048) {
+      wire_(spec.baud, static_cast<TimestampNs>(spec.read_interval_s * 1e9), 2048),
+      error_(spec) {
   // The constellation: uniform in azimuth, uniform in the sine of the elevation above the mask.
   const double mask = spec.elevation_mask_deg * kRadPerDeg;
   for (int i = 0; i < spec.satellites; ++i) {
@@ -57,34 +58,7 @@ SimGps::SimGps(const GpsSpec& spec, const Site& site, std::size_t device, std::u
     satellite.id = static_cast<std::uint16_t>(2 + 3 * i);
     satellites_.push_back(satellite);
   }
-  // Start both wanders from their stationary distributions.
-  const double slow_sigma = slow_horizontal_sigma_m(spec);
-  slow_error_m_ = Vec3(random_.gaussian(slow_sigma), random_.gaussian(slow_sigma),
-                       random_.gaussian(spec.vertical_error_rms_m));
-  const double multipath_sigma = spec.multipath_error_rms_m / std::numbers::sqrt2;
-  multipath_error_m_ = Vec2(random_.gaussian(multipath_sigma), random_.gaussian(multipath_sigma));
-}
-
-double SimGps::slow_horizontal_sigma_m(const GpsSpec& spec) noexcept {
-  // Per axis; the two parts' variances add up to the horizontal RMS squared.
-  const double total = spec.horizontal_error_rms_m;
-  const double multipath = spec.multipath_error_rms_m;
-  return std::sqrt(std::max(0.0, total * total - multipath * multipath) / 2.0);
-}
-
-void SimGps::wander(double dt_s) {
-  // Each part is a first-order Gauss-Markov process, exactly discretised for dt_s.
-  const auto step = [&](double& value, double sigma, double correlation_s) {
-    const double keep = std::exp(-dt_s / correlation_s);
-    value = keep * value + std::sqrt(1.0 - keep * keep) * random_.gaussian(sigma);
-  };
-  const double slow_sigma = slow_horizontal_sigma_m(spec_);
-  step(slow_error_m_.x(), slow_sigma, spec_.correlation_time_s);
-  step(slow_error_m_.y(), slow_sigma, spec_.correlation_time_s);
-  step(slow_error_m_.z(), spec_.vertical_error_rms_m, spec_.correlation_time_s);
-  const double multipath_sigma = spec_.multipath_error_rms_m / std::numbers::sqrt2;
-  step(multipath_error_m_.x(), multipath_sigma, spec_.multipath_correlation_s);
-  step(multipath_error_m_.y(), multipath_sigma, spec_.multipath_correlation_s);
+  error_.start(random_);
 }
 
 TimestampNs SimGps::epoch_ns(const SimContext& context, std::uint64_t epoch) const {
@@ -136,7 +110,7 @@ void SimGps::make_epoch(SimContext& context, SimSink& sink, SimStats& stats) {
   truth.epoch_ns = epoch;
   truth.antenna_m = state.position_m + state.rotation() * spec_.antenna_m;
 
-  wander(1.0 / spec_.rate_hz);
+  error_.advance(1.0 / spec_.rate_hz, random_);
 
   nmea::GsaData gsa;
   gsa.automatic = true;
@@ -151,20 +125,11 @@ void SimGps::make_epoch(SimContext& context, SimSink& sink, SimStats& stats) {
                                                            truth.satellites_visible)
                          : 99.9;
   // Fewer satellites, worse geometry: the error grows with the HDOP.
-  const Vec3 error_m = slow_error_m_ + Vec3(multipath_error_m_.x(), multipath_error_m_.y(), 0.0);
-  truth.error_m = error_m * (truth.fix ? truth.hdop / spec_.hdop_open_sky : 1.0);
+  truth.error_m = error_.error_m() * (truth.fix ? truth.hdop / spec_.hdop_open_sky : 1.0);
 
   msg::GpsFix fix;
   const double utc_s = site_.start_unix_s + t_s;
-  const auto utc_ms = static_cast<std::int64_t>(std::floor(utc_s * 1000.0 + 0.5));
-  fix.has_time = true;
-  fix.utc_milliseconds_of_day = static_cast<std::int32_t>(utc_ms % 86'400'000);
-  const std::chrono::year_month_day date{
-      std::chrono::sys_days{std::chrono::days{utc_ms / 86'400'000}}};
-  fix.has_date = true;
-  fix.utc_year = static_cast<std::uint16_t>(static_cast<int>(date.year()));
-  fix.utc_month = static_cast<std::uint8_t>(static_cast<unsigned>(date.month()));
-  fix.utc_day = static_cast<std::uint8_t>(static_cast<unsigned>(date.day()));
+  set_fix_utc(fix, utc_s);
   fix.valid = truth.fix;
   fix.has_quality = true;
   fix.quality = truth.fix ? msg::GpsFixQuality::kGps : msg::GpsFixQuality::kInvalid;
