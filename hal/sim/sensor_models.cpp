@@ -63,10 +63,14 @@ GpsErrorProcess::GpsErrorProcess(const GpsSpec& spec)
       multipath_sigma_m_(spec.multipath_error_rms_m / std::numbers::sqrt2) {}
 
 void GpsErrorProcess::start(SimRandom& random) {
-  slow_m_ = Eigen::Vector3d(random.gaussian(slow_sigma_m_), random.gaussian(slow_sigma_m_),
-                            random.gaussian(spec_.vertical_error_rms_m));
-  multipath_m_ =
-      Eigen::Vector2d(random.gaussian(multipath_sigma_m_), random.gaussian(multipath_sigma_m_));
+  // One draw per statement: the order in which a call's arguments are evaluated is
+  // unspecified, and GCC and Clang differ, which made the same seed give different runs.
+  // (Up, north, east: the order GCC used, so that the figures in the docs stand.)
+  slow_m_.z() = random.gaussian(spec_.vertical_error_rms_m);
+  slow_m_.y() = random.gaussian(slow_sigma_m_);
+  slow_m_.x() = random.gaussian(slow_sigma_m_);
+  multipath_m_.y() = random.gaussian(multipath_sigma_m_);
+  multipath_m_.x() = random.gaussian(multipath_sigma_m_);
 }
 
 void GpsErrorProcess::advance(double dt_s, SimRandom& random) {
