@@ -35,6 +35,7 @@
 #include "cli.hpp"
 #include "commands/commands.hpp"
 #include "commands/decoders.hpp"
+#include "commands/geodetic_option.hpp"
 
 namespace blockmap::cli {
 namespace {
@@ -267,14 +268,12 @@ Json truth_pose(const hal::sim::RobotState& state, double unix_s) {
 }
 
 int import_trajectory(const ImportOptions& options, std::ostream& err) {
-  hal::GeodeticPoint origin;
-  char tail = 0;
-  if (std::sscanf(options.origin.c_str(), "%lf,%lf,%lf%c", &origin.latitude_deg,
-                  &origin.longitude_deg, &origin.height_m, &tail) != 3 ||
-      std::abs(origin.latitude_deg) > 90.0 || std::abs(origin.longitude_deg) > 180.0) {
-    err << "blockmap: import: --origin must be LAT,LON,HEIGHT in degrees and metres\n";
+  const std::optional<hal::GeodeticPoint> parsed_origin = parse_origin(options.origin);
+  if (!parsed_origin) {
+    err << "blockmap: import: " << kOriginFormatError << '\n';
     return kExitUsage;
   }
+  const hal::GeodeticPoint origin = *parsed_origin;
   const Reference reference = read_reference(options.trajectory);
   std::string robot_source;
   const std::string robot_toml = hal::sim::robot_text(options.robot, robot_source);

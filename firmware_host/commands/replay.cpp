@@ -27,6 +27,7 @@
 #include "blockmap/localize/localizer.hpp"
 #include "cli.hpp"
 #include "commands/commands.hpp"
+#include "commands/geodetic_option.hpp"
 
 namespace blockmap::cli {
 namespace {
@@ -69,17 +70,6 @@ hal::GeodeticPoint fix_point(const msg::GpsFix& fix) {
   // Ellipsoidal height: NMEA gives the height above the geoid and the geoid's separation.
   return {fix.latitude_deg, fix.longitude_deg,
           fix.altitude_msl_m + (fix.has_geoid_separation ? fix.geoid_separation_m : 0.0)};
-}
-
-std::optional<hal::GeodeticPoint> parse_origin(const std::string& text) {
-  hal::GeodeticPoint point;
-  char tail = 0;
-  if (std::sscanf(text.c_str(), "%lf,%lf,%lf%c", &point.latitude_deg, &point.longitude_deg,
-                  &point.height_m, &tail) != 3 ||
-      std::abs(point.latitude_deg) > 90.0 || std::abs(point.longitude_deg) > 180.0) {
-    return std::nullopt;
-  }
-  return point;
 }
 
 // The recorded devices, read in time order.
@@ -175,7 +165,7 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
   if (!options.origin.empty()) {
     const std::optional<hal::GeodeticPoint> origin = parse_origin(options.origin);
     if (!origin) {
-      err << "blockmap: replay: --origin must be LAT,LON,HEIGHT in degrees and metres\n";
+      err << "blockmap: replay: " << kOriginFormatError << '\n';
       return kExitUsage;
     }
     frame.emplace(*origin);
