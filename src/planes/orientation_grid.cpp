@@ -5,6 +5,7 @@
 #include <numbers>
 
 #include "blockmap/core/check.hpp"
+#include "blockmap/planes/fast_trig.hpp"
 
 namespace blockmap::planes {
 namespace {
@@ -34,40 +35,6 @@ bool searched(double theta_rad, OrientationMode mode, double tolerance_rad) {
   return theta_rad <= tolerance_rad + 1e-9 || theta_rad >= kPi / 2.0 - tolerance_rad - 1e-9;
 }
 
-// acos on [0, 1] within 2e-8 rad (Abramowitz and Stegun 4.4.46): the cell of every sample's
-// normal is looked up, and libm's acos and atan2 were a tenth of the detection time.
-float acos_unit(float x) {
-  const float p =
-      1.5707963050f +
-      x * (-0.2145988016f +
-           x * (0.0889789874f +
-                x * (-0.0501743046f +
-                     x * (0.0308918810f +
-                          x * (-0.0170881256f + x * (0.0066700901f + x * -0.0012624911f))))));
-  return std::sqrt(std::max(1.0f - x, 0.0f)) * p;
-}
-
-// atan2 within 1e-5 rad (a minimax polynomial for atan on [0, 1]); cells are 0.03 rad wide.
-float fast_atan2(float y, float x) {
-  constexpr float kPiF = std::numbers::pi_v<float>;
-  const float ax = std::abs(x);
-  const float ay = std::abs(y);
-  const float big = std::max(ax, ay);
-  if (big == 0.0f) {
-    return 0.0f;
-  }
-  const float a = std::min(ax, ay) / big;
-  const float a2 = a * a;
-  float r =
-      a *
-      (0.99997726f +
-       a2 * (-0.33262347f +
-             a2 * (0.19354346f + a2 * (-0.11643287f + a2 * (0.05265332f + a2 * -0.01172120f)))));
-  r = ay > ax ? kPiF / 2.0f - r : r;
-  r = x < 0.0f ? kPiF - r : r;
-  return y < 0.0f ? -r : r;
-}
-
 }  // namespace
 
 void OrientationGrid::init(Arena& arena, double angle_bin_deg, OrientationMode mode,
@@ -78,6 +45,7 @@ void OrientationGrid::init(Arena& arena, double angle_bin_deg, OrientationMode m
   band_count_ = std::max<std::uint32_t>(intervals, 1) + 1;
   const double step_rad = kPi / 2.0 / static_cast<double>(band_count_ - 1);
   band_step_rad_ = static_cast<float>(step_rad);
+  inverse_band_step_ = static_cast<float>(1.0 / step_rad);
   band_first_cell_ = arena.allocate_array<std::uint32_t>(band_count_, "planes.orientation_grid");
   band_cells_ = arena.allocate_array<std::uint32_t>(band_count_, "planes.orientation_grid");
   std::uint32_t cells = 0;
@@ -142,23 +110,23 @@ void OrientationGrid::build_kernels(Arena& arena, float kernel_rad) {
 }
 
 std::uint32_t OrientationGrid::cell_of(const Eigen::Vector3f& normal) const noexcept {
-  const Eigen::Vector3f n = normal.z() < 0.0f ? Eigen::Vector3f(-normal) : normal;
+  // Without data-dependent branches (selects and a floor instead): half the normals are walls
+  // on the equator band and half of any set point west, so branches here mispredict.
+  const float sign = normal.z() < 0.0f ? -1.0f : 1.0f;
+  const Eigen::Vector3f n = normal * sign;
   const float theta = acos_unit(std::min(n.z(), 1.0f));
+  // The nearest band (floor is an instruction, lround a libm call).
   const auto band = std::min<std::uint32_t>(
-      static_cast<std::uint32_t>(std::lround(theta / band_step_rad_)), band_count_ - 1);
+      static_cast<std::uint32_t>(std::floor(theta * inverse_band_step_ + 0.5f)), band_count_ - 1);
   const std::uint32_t cells = band_cells_[band];
-  constexpr float kPiF = std::numbers::pi_v<float>;
-  float phi = fast_atan2(n.y(), n.x());
-  float circle = 2.0f * kPiF;
-  if (band + 1 == band_count_) {
-    circle = kPiF;
-    phi = phi < 0.0f ? phi + kPiF : phi;
-    phi = phi >= kPiF ? phi - kPiF : phi;
-  } else if (phi < 0.0f) {
-    phi += 2.0f * kPiF;
-  }
+  // The turn of phi around the band's circle, in [0, 1): the equator band holds half a circle
+  // (n and -n are one plane there), the others a whole one.
+  constexpr float kInverseTwoPi = 0.5f / std::numbers::pi_v<float>;
+  const float turns_per_rad = band + 1 == band_count_ ? 2.0f * kInverseTwoPi : kInverseTwoPi;
+  float turn = fast_atan2(n.y(), n.x()) * turns_per_rad;
+  turn -= std::floor(turn);
   const auto j = std::min<std::uint32_t>(
-      static_cast<std::uint32_t>(phi / circle * static_cast<float>(cells)), cells - 1);
+      static_cast<std::uint32_t>(turn * static_cast<float>(cells)), cells - 1);
   return band_first_cell_[band] + j;
 }
 

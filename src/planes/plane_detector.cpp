@@ -122,7 +122,7 @@ std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
   }
   stats_.samples = voxels_.size();
   merger_.clear();
-  for (const CellKey section : sections_.sections()) {
+  for (std::size_t section = 0; section < sections_.sections().size(); ++section) {
     detect_in_section(section);
   }
   stats_.sections = sections_.sections().size();
@@ -169,20 +169,19 @@ void PlaneDetector::vote_sample(const Voxel& voxel, const Eigen::Vector3f& posit
   }
 }
 
-void PlaneDetector::detect_in_section(CellKey section) noexcept {
+void PlaneDetector::detect_in_section(std::size_t index) noexcept {
   // Samples that an earlier, overlapping section gave to a plane neither vote nor count: if
   // too few points are left for a plane, the section is done before its samples are read.
-  std::array<std::uint32_t, SectionGrid::kMaxBlocksPerSection> blocks{};
-  const std::size_t block_count = sections_.find_blocks(voxels_, section, blocks);
+  const CellKey section = sections_.sections()[index];
+  const std::span<const std::uint32_t> blocks = sections_.blocks_of(index);
   std::uint64_t free_points = 0;
-  for (std::size_t b = 0; b < block_count; ++b) {
-    free_points += block_free_points_[blocks[b]];
+  for (const std::uint32_t block : blocks) {
+    free_points += block_free_points_[block];
   }
   if (static_cast<double>(free_points) < config_.min_votes) {
     return;
   }
-  const std::size_t count = sections_.gather(
-      voxels_, std::span<const std::uint32_t>(blocks.data(), block_count), section_samples_);
+  const std::size_t count = sections_.gather(voxels_, blocks, section_samples_);
   const std::span<const Voxel> voxels = voxels_.voxels();
   ++stats_.sections_searched;
   const Eigen::Vector3f centre = sections_.centre_m(section);

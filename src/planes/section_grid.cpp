@@ -13,18 +13,24 @@ void SectionGrid::init(Arena& arena, std::size_t max_blocks, std::uint32_t block
                      "bad section geometry");
   blocks_per_section_ = blocks_per_section;
   block_size_m_ = block_size_m;
-  blocks_ = arena.allocate_array<CellKey>(max_blocks, "planes.section_grid");
-  // Every block starts k^3 sections at most.
-  sections_ = arena.allocate_array<CellKey>(
-      max_blocks * blocks_per_section * blocks_per_section * blocks_per_section,
-      "planes.section_grid");
+  blocks_ = arena.allocate_array<KeyedBlock>(max_blocks, "planes.section_grid");
+  // Every block lies in k^3 sections, so there are at most k^3 sections per block, and as
+  // many section-block pairs.
+  const std::size_t pairs =
+      max_blocks * blocks_per_section * blocks_per_section * blocks_per_section;
+  sections_ = arena.allocate_array<CellKey>(pairs, "planes.section_grid");
+  section_first_ = arena.allocate_array<std::uint32_t>(pairs + 1, "planes.section_grid");
+  section_blocks_ = arena.allocate_array<std::uint32_t>(pairs, "planes.section_grid");
+  section_first_[0] = 0;
 }
 
 std::size_t SectionGrid::arena_bytes(std::size_t max_blocks,
                                      std::uint32_t blocks_per_section) noexcept {
-  return max_blocks * (1 + blocks_per_section * blocks_per_section * blocks_per_section) *
-             sizeof(CellKey) +
-         std::size_t{128};  // two allocations, 64-byte aligned
+  const std::size_t pairs =
+      max_blocks * blocks_per_section * blocks_per_section * blocks_per_section;
+  return max_blocks * sizeof(KeyedBlock) + pairs * sizeof(CellKey) +
+         (2 * pairs + 1) * sizeof(std::uint32_t) +
+         std::size_t{256};  // four allocations, 64-byte aligned
 }
 
 void SectionGrid::build(const VoxelGrid& grid) noexcept {
@@ -32,10 +38,11 @@ void SectionGrid::build(const VoxelGrid& grid) noexcept {
   std::size_t block_count = 0;
   for (std::size_t block = 0; block < grid.block_count(); ++block) {
     if (grid.block_range(block).count > 0 && block_count < blocks_.size()) {
-      blocks_[block_count++] = grid.block_key(block);
+      blocks_[block_count++] = KeyedBlock{grid.block_key(block), static_cast<std::uint32_t>(block)};
     }
   }
-  std::sort(blocks_.begin(), blocks_.begin() + static_cast<std::ptrdiff_t>(block_count));
+  std::sort(blocks_.begin(), blocks_.begin() + static_cast<std::ptrdiff_t>(block_count),
+            [](const KeyedBlock& a, const KeyedBlock& b) { return a.key < b.key; });
   merge_shifted_block_lists(block_count);
 }
 
@@ -57,46 +64,34 @@ void SectionGrid::merge_shifted_block_lists(std::size_t block_count) noexcept {
     }
   }
   section_count_ = 0;
+  std::uint32_t pairs = 0;
   for (;;) {
     CellKey lowest = kNoCell;
     for (std::size_t list = 0; list < lists; ++list) {
       if (next[list] < block_count) {
-        lowest = std::min(lowest, blocks_[next[list]] - offsets[list]);
+        lowest = std::min(lowest, blocks_[next[list]].key - offsets[list]);
       }
     }
     if (lowest == kNoCell) {
       return;
     }
+    // The heads equal to the section are its blocks, one per offset, in offset order.
+    const bool room = section_count_ < sections_.size();
     for (std::size_t list = 0; list < lists; ++list) {
-      if (next[list] < block_count && blocks_[next[list]] - offsets[list] == lowest) {
+      if (next[list] < block_count && blocks_[next[list]].key - offsets[list] == lowest) {
+        if (room) {
+          section_blocks_[pairs++] = blocks_[next[list]].block;
+        }
         ++next[list];
       }
     }
-    if (section_count_ == sections_.size()) {
+    if (!room) {
       ++counters_.sections_dropped_full;
       continue;
     }
     sections_[section_count_++] = lowest;
+    section_first_[section_count_] = pairs;
   }
-}
-
-std::size_t SectionGrid::find_blocks(
-    const VoxelGrid& grid, CellKey section,
-    std::span<std::uint32_t, kMaxBlocksPerSection> out) const noexcept {
-  const auto s = unpack_cell(section);
-  const auto k = static_cast<std::int64_t>(blocks_per_section_);
-  std::size_t count = 0;
-  for (std::int64_t dx = 0; dx < k; ++dx) {
-    for (std::int64_t dy = 0; dy < k; ++dy) {
-      for (std::int64_t dz = 0; dz < k; ++dz) {
-        const std::uint32_t block = grid.find_block(pack_cell(s.x() + dx, s.y() + dy, s.z() + dz));
-        if (block != CellIndex::kAbsent) {
-          out[count++] = block;
-        }
-      }
-    }
-  }
-  return count;
 }
 
 std::size_t SectionGrid::gather(const VoxelGrid& grid, std::span<const std::uint32_t> blocks,

@@ -9,6 +9,7 @@
 #include <Eigen/Geometry>
 
 #include "blockmap/core/check.hpp"
+#include "blockmap/planes/fast_trig.hpp"
 
 namespace blockmap::planes {
 
@@ -86,7 +87,8 @@ void VoxelGrid::init(Arena& arena, double voxel_size_m, std::size_t max_voxels) 
   live_masks_ = arena.allocate_array<std::uint64_t>(max_voxels, "planes.voxel_grid");
   block_first_ = arena.allocate_array<std::uint32_t>(max_voxels, "planes.voxel_grid");
   block_order_ = arena.allocate_array<BlockOrder>(max_voxels, "planes.voxel_grid");
-  block_sums_ = arena.allocate_array<BlockSums>(max_voxels, "planes.voxel_grid");
+  centred_sums_ = arena.allocate_array<CentredSums>(max_voxels, "planes.voxel_grid");
+  block_sums_ = arena.allocate_array<CentredSums>(max_voxels, "planes.voxel_grid");
   block_summed_ = arena.allocate_array<std::uint8_t>(max_voxels, "planes.voxel_grid");
   slot_count_ = 0;
   clear();
@@ -98,8 +100,8 @@ std::size_t VoxelGrid::arena_bytes(std::size_t max_voxels) noexcept {
   return slots * sizeof(VoxelSums) +
          max_voxels * (sizeof(std::uint32_t) + sizeof(Voxel) + sizeof(CellKey) +
                        2 * sizeof(std::uint64_t) + sizeof(std::uint32_t) + sizeof(BlockOrder) +
-                       sizeof(BlockSums) + sizeof(std::uint8_t)) +
-         CellIndex::arena_bytes(max_voxels) + 10 * kAlignment;
+                       2 * sizeof(CentredSums) + sizeof(std::uint8_t)) +
+         CellIndex::arena_bytes(max_voxels) + 11 * kAlignment;
 }
 
 std::size_t VoxelGrid::count_voxels(std::span<const Eigen::Vector3f> points_m, double voxel_size_m,
@@ -204,6 +206,19 @@ std::uint64_t morton_code(CellKey key) noexcept {
   return (spread_bits(key >> 42) << 2) | (spread_bits(key >> 21) << 1) | spread_bits(key);
 }
 
+// A sample's sums moved from its cell's centre to its block's centre (1.5 cells from the
+// cell at the block's low corner), once per sample, so that the shape pass adds them as they
+// are.
+CentredSums about_block_centre(const VoxelSums& sums, std::uint32_t bit, float size_m) noexcept {
+  CentredSums cell;
+  cell.values[0] = static_cast<float>(sums.point_count);
+  std::copy_n(sums.sum_m, 3, cell.values.begin() + 1);
+  std::copy_n(sums.sum_outer_m2, 6, cell.values.begin() + 4);
+  return cell.moved_by({(static_cast<float>(bit >> 4) - 1.5f) * size_m,
+                        (static_cast<float>((bit >> 2) & 3) - 1.5f) * size_m,
+                        (static_cast<float>(bit & 3) - 1.5f) * size_m});
+}
+
 }  // namespace
 
 void VoxelGrid::compact() noexcept {
@@ -216,7 +231,38 @@ void VoxelGrid::compact() noexcept {
   std::sort(block_order_.begin(), block_order_.begin() + static_cast<std::ptrdiff_t>(block_count_),
             [](const BlockOrder& a, const BlockOrder& b) { return a.code < b.code; });
   count_ = 0;
+  // A block's cells hash to the slots after the home slot of its first cell (offset by their
+  // bit); the table is tens of MiB, so the slots of the block kAhead places on are fetched
+  // while this one is copied.
+  constexpr std::size_t kAhead = 16;
+  const auto prefetch_block = [this](std::size_t i) {
+    const std::uint32_t block = block_order_[i].block;
+    const Eigen::Matrix<std::int64_t, 3, 1> base = unpack_cell(block_keys_[block]) * kBlockEdge;
+    const std::size_t home = home_slot(pack_cell(base.x(), base.y(), base.z()));
+    // Written out, not as a loop: GCC deletes a loop whose only effect is a prefetch. Most
+    // blocks hold fewer than six samples.
+    std::uint64_t cells = block_masks_[block];
+    const auto fetch_lowest_cell = [&] {
+      if (cells != 0) {
+        __builtin_prefetch(
+            &table_[(home + static_cast<std::size_t>(std::countr_zero(cells))) & mask_]);
+        cells &= cells - 1;
+      }
+    };
+    fetch_lowest_cell();
+    fetch_lowest_cell();
+    fetch_lowest_cell();
+    fetch_lowest_cell();
+    fetch_lowest_cell();
+    fetch_lowest_cell();
+  };
+  for (std::size_t i = 0; i < std::min(kAhead, block_count_); ++i) {
+    prefetch_block(i);
+  }
   for (std::size_t i = 0; i < block_count_; ++i) {
+    if (i + kAhead < block_count_) {
+      prefetch_block(i + kAhead);
+    }
     const std::uint32_t block = block_order_[i].block;
     block_first_[block] = static_cast<std::uint32_t>(count_);
     const Eigen::Matrix<std::int64_t, 3, 1> base = unpack_cell(block_keys_[block]) * kBlockEdge;
@@ -229,6 +275,7 @@ void VoxelGrid::compact() noexcept {
       if (sums.point_count == 0) {
         continue;  // every point taken back out
       }
+      centred_sums_[count_] = about_block_centre(sums, bit, size_m_);
       Voxel& voxel = voxels_[count_++];
       voxel = Voxel{};
       static_cast<VoxelSums&>(voxel) = sums;
@@ -240,29 +287,11 @@ void VoxelGrid::compact() noexcept {
   }
 }
 
-VoxelGrid::BlockSums VoxelGrid::sum_block(std::uint32_t block) const noexcept {
-  BlockSums sums;
-  const std::uint64_t live = live_masks_[block];
-  std::uint32_t id = block_first_[block];
-  for (std::uint64_t cells = live; cells != 0; cells &= cells - 1, ++id) {
-    const auto bit = static_cast<std::uint32_t>(std::countr_zero(cells));
-    const Voxel& v = voxels_[id];
-    // Parallel axis: from the cell's centre to the block's (2 cells from its low corner).
-    const std::array<float, 3> t = {(static_cast<float>(bit >> 4) - 1.5f) * size_m_,
-                                    (static_cast<float>((bit >> 2) & 3) - 1.5f) * size_m_,
-                                    (static_cast<float>(bit & 3) - 1.5f) * size_m_};
-    const auto w = static_cast<float>(v.point_count);
-    sums.point_count += w;
-    for (std::size_t a = 0; a < 3; ++a) {
-      sums.sum_m[a] += v.sum_m[a] + w * t[a];
-    }
-    std::size_t k = 0;
-    for (std::size_t a = 0; a < 3; ++a) {
-      for (std::size_t b = a; b < 3; ++b, ++k) {
-        sums.sum_outer_m2[k] +=
-            v.sum_outer_m2[k] + v.sum_m[a] * t[b] + t[a] * v.sum_m[b] + w * t[a] * t[b];
-      }
-    }
+CentredSums VoxelGrid::sum_block(std::uint32_t block) const noexcept {
+  CentredSums sums;
+  const BlockRange range = block_range(block);
+  for (std::uint32_t id = range.first; id < range.first + range.count; ++id) {
+    sums.add(centred_sums_[id]);
   }
   return sums;
 }
@@ -293,8 +322,8 @@ PointMoments VoxelGrid::moments(const VoxelSums& voxel,
   return local.shifted(centre_m(voxel.key).cast<double>() - origin_m);
 }
 
-VoxelGrid::LocatedPoint VoxelGrid::locate(const Eigen::Vector3f& point_m,
-                                          float inverse_size) noexcept {
+inline VoxelGrid::LocatedPoint VoxelGrid::locate(const Eigen::Vector3f& point_m,
+                                                 float inverse_size) noexcept {
   LocatedPoint located;
   if (!point_m.allFinite()) {
     located.status = LocatedPoint::Status::kNonFinite;
@@ -321,7 +350,7 @@ VoxelGrid::LocatedPoint VoxelGrid::locate(const Eigen::Vector3f& point_m,
   return located;
 }
 
-void VoxelGrid::accumulate(const LocatedPoint& point, int sign) noexcept {
+inline void VoxelGrid::accumulate(const LocatedPoint& point, int sign) noexcept {
   switch (point.status) {
     case LocatedPoint::Status::kNonFinite:
       ++counters_.points_dropped_nonfinite;
@@ -362,30 +391,35 @@ void VoxelGrid::accumulate(const LocatedPoint& point, int sign) noexcept {
   }
 }
 
+void VoxelGrid::add_point(const Eigen::Vector3f& point_m) noexcept {
+  accumulate(locate(point_m, inverse_size_), 1);
+}
+
+void VoxelGrid::remove_point(const Eigen::Vector3f& point_m) noexcept {
+  accumulate(locate(point_m, inverse_size_), -1);
+}
+
 void VoxelGrid::add_points(std::span<const Eigen::Vector3f> points_m) noexcept {
-  // Pipelined: each point is located kAhead points before it is summed, and its slot fetched
-  // then (the table is tens of MiB; a new cell is a cache miss), once per change of cell.
-  constexpr std::size_t kAhead = 8;
-  std::array<LocatedPoint, kAhead> ahead;
+  // In batches: a batch's points are located first, and the slot of each change of cell
+  // fetched (the table is tens of MiB; a new cell is a cache miss), then they are summed
+  // while the fetches arrive.
+  constexpr std::size_t kBatch = 32;
+  std::array<LocatedPoint, kBatch> batch;
   CellKey fetched = kNoCell;
-  const auto prepare = [&](std::size_t i) {
-    LocatedPoint& located = ahead[i % kAhead];
-    located = locate(points_m[i]);
-    if (located.status == LocatedPoint::Status::kOk && located.key != fetched) {
-      fetched = located.key;
-      __builtin_prefetch(&table_[home_slot(located.key)]);
+  for (std::size_t first = 0; first < points_m.size(); first += kBatch) {
+    const std::size_t count = std::min(kBatch, points_m.size() - first);
+    for (std::size_t i = 0; i < count; ++i) {
+      batch[i] = locate(points_m[first + i], inverse_size_);
     }
-  };
-  const std::size_t n = points_m.size();
-  for (std::size_t i = 0; i < std::min(n, kAhead); ++i) {
-    prepare(i);
-  }
-  for (std::size_t i = 0; i < n; ++i) {
-    const LocatedPoint located = ahead[i % kAhead];
-    if (i + kAhead < n) {
-      prepare(i + kAhead);
+    for (std::size_t i = 0; i < count; ++i) {
+      if (batch[i].status == LocatedPoint::Status::kOk && batch[i].key != fetched) {
+        fetched = batch[i].key;
+        __builtin_prefetch(&table_[home_slot(fetched)]);
+      }
     }
-    accumulate(located, 1);
+    for (std::size_t i = 0; i < count; ++i) {
+      accumulate(batch[i], 1);
+    }
   }
 }
 
@@ -408,6 +442,9 @@ constexpr std::uint64_t cells_facing(int dx, int dy, int dz) noexcept {
   }
   return mask;
 }
+
+// The index of a block's own entry among the 27 of its neighbourhood (offset 0, 0, 0).
+constexpr std::size_t kOwnBlock = 13;
 
 constexpr std::array<std::uint64_t, 27> kCellsFacing = [] {
   std::array<std::uint64_t, 27> masks{};
@@ -441,6 +478,8 @@ void VoxelGrid::load_neighbourhood(std::int64_t bx, std::int64_t by, std::int64_
         if (block != CellIndex::kAbsent) {
           out.live_masks[k] = live_masks_[block];
           out.first[k] = block_first_[block];
+          // The shape pass reads these sums a block or two later.
+          __builtin_prefetch(&centred_sums_[block_first_[block]]);
         }
       }
     }
@@ -451,15 +490,29 @@ void VoxelGrid::estimate_shapes(std::uint32_t min_points, double max_planarity_r
                                 double max_line_ratio, bool coarse_second_look) noexcept {
   const auto planar_ratio_sq = static_cast<float>(max_planarity_ratio * max_planarity_ratio);
   const auto line_ratio_sq = static_cast<float>(max_line_ratio * max_line_ratio);
-  BlockNeighbourhood around;
+  // Pipelined: the neighbourhood of the block kAhead places on is looked up (and its sums
+  // fetched) while this block's samples are summed.
+  constexpr std::size_t kAhead = 2;
+  std::array<BlockNeighbourhood, kAhead + 1> ring;
+  const auto look_up = [&](std::size_t i) {
+    const std::uint32_t block = block_order_[i].block;
+    const auto b = unpack_cell(block_keys_[block]);
+    load_neighbourhood(b.x(), b.y(), b.z(), live_masks_[block], ring[i % ring.size()]);
+  };
+  for (std::size_t i = 0; i < std::min(kAhead, block_count_); ++i) {
+    look_up(i);
+  }
   for (std::size_t i = 0; i < block_count_; ++i) {
+    if (i + kAhead < block_count_) {
+      look_up(i + kAhead);
+    }
     const std::uint32_t block = block_order_[i].block;
     const BlockRange range = block_range(block);
     if (range.count == 0) {
       continue;
     }
     const auto b = unpack_cell(block_keys_[block]);
-    load_neighbourhood(b.x(), b.y(), b.z(), live_masks_[block], around);
+    const BlockNeighbourhood& around = ring[i % ring.size()];
     bool any_scattered = false;
     for (std::uint32_t id = range.first; id < range.first + range.count; ++id) {
       estimate_shape(voxels_[id], around, planar_ratio_sq, line_ratio_sq,
@@ -522,50 +575,70 @@ std::size_t axis_spans(std::int64_t local, std::array<AxisSpan, 2>& out) noexcep
 }
 
 // The eigenvalues of a symmetric 3 x 3 matrix, ascending, in closed form (the trigonometric
-// solution of its characteristic cubic): the shape pass needs them for every sample, and one
-// eigenvector only when the shape is planar or linear.
-Eigen::Vector3d symmetric_eigenvalues(const Eigen::Matrix3d& a) noexcept {
-  const double q = a.trace() / 3.0;
-  const double off = a(0, 1) * a(0, 1) + a(0, 2) * a(0, 2) + a(1, 2) * a(1, 2);
-  const Eigen::Matrix3d shifted = a - q * Eigen::Matrix3d::Identity();
-  const double p2 = (shifted.diagonal().squaredNorm() + 2.0 * off) / 6.0;
-  if (p2 <= 0.0) {
-    return Eigen::Vector3d::Constant(q);  // a multiple of the identity
+// solution of its characteristic cubic) and in float with polynomial trigonometry: the shape
+// pass needs them for every sample (libm's acos and cos were a twentieth of the detection),
+// and one eigenvector only when the shape is planar or linear. The ratio tests compare
+// eigenvalues a factor of ten or more apart; float keeps them to a part in a million.
+Eigen::Vector3f symmetric_eigenvalues(const Eigen::Matrix3f& a) noexcept {
+  const float q = a.trace() / 3.0f;
+  const float off = a(0, 1) * a(0, 1) + a(0, 2) * a(0, 2) + a(1, 2) * a(1, 2);
+  const Eigen::Matrix3f shifted = a - q * Eigen::Matrix3f::Identity();
+  const float p2 = (shifted.diagonal().squaredNorm() + 2.0f * off) / 6.0f;
+  if (p2 <= 0.0f) {
+    return Eigen::Vector3f::Constant(q);  // a multiple of the identity
   }
-  const double p = std::sqrt(p2);
-  const double r = std::clamp(shifted.determinant() / (2.0 * p2 * p), -1.0, 1.0);
-  const double third = std::acos(r) / 3.0;
-  constexpr double kTwoThirdsPi = 2.0 * std::numbers::pi / 3.0;
-  const double largest = q + 2.0 * p * std::cos(third);
-  const double smallest = q + 2.0 * p * std::cos(third + kTwoThirdsPi);
-  return {smallest, 3.0 * q - largest - smallest, largest};
+  const float p = std::sqrt(p2);
+  const float r = std::clamp(shifted.determinant() / (2.0f * p2 * p), -1.0f, 1.0f);
+  const float third = acos_signed(r) / 3.0f;  // in [0, pi/3]
+  const float c = cos_small(third);
+  const float s = sin_small(third);
+  constexpr float kHalfSqrt3 = 0.8660254038f;
+  const float largest = q + 2.0f * p * c;
+  // cos(third + 2 pi / 3) = -cos(third) / 2 - sin(third) sqrt(3) / 2
+  const float smallest = q - p * (c + 2.0f * kHalfSqrt3 * s);
+  return {smallest, 3.0f * q - largest - smallest, largest};
 }
 
 // The unit eigenvector of symmetric `a` for `eigenvalue`, when that eigenvalue is well apart
 // from the other two (the callers' ratio tests make sure): the rows of a - eigenvalue I span
 // the plane perpendicular to it, so the largest cross product of two rows is the best
 // conditioned estimate.
-Eigen::Vector3d eigenvector_of(const Eigen::Matrix3d& a, double eigenvalue) noexcept {
-  const Eigen::Matrix3d m = a - eigenvalue * Eigen::Matrix3d::Identity();
-  const Eigen::Vector3d c01 = m.row(0).cross(m.row(1));
-  const Eigen::Vector3d c02 = m.row(0).cross(m.row(2));
-  const Eigen::Vector3d c12 = m.row(1).cross(m.row(2));
-  const double n01 = c01.squaredNorm();
-  const double n02 = c02.squaredNorm();
-  const double n12 = c12.squaredNorm();
-  const Eigen::Vector3d& best = n01 >= n02 ? (n01 >= n12 ? c01 : c12) : (n02 >= n12 ? c02 : c12);
-  const double norm = best.norm();
-  return norm > 0.0 ? Eigen::Vector3d(best / norm) : Eigen::Vector3d::UnitZ();
+Eigen::Vector3f eigenvector_of(const Eigen::Matrix3f& a, float eigenvalue) noexcept {
+  const Eigen::Matrix3f m = a - eigenvalue * Eigen::Matrix3f::Identity();
+  const Eigen::Vector3f c01 = m.row(0).cross(m.row(1));
+  const Eigen::Vector3f c02 = m.row(0).cross(m.row(2));
+  const Eigen::Vector3f c12 = m.row(1).cross(m.row(2));
+  const float n01 = c01.squaredNorm();
+  const float n02 = c02.squaredNorm();
+  const float n12 = c12.squaredNorm();
+  const Eigen::Vector3f& best = n01 >= n02 ? (n01 >= n12 ? c01 : c12) : (n02 >= n12 ? c02 : c12);
+  const float norm = best.norm();
+  return norm > 0.0f ? Eigen::Vector3f(best / norm) : Eigen::Vector3f::UnitZ();
+}
+
+// The covariance of the points that `sums` add up, and its eigenvalues (ascending, >= 0).
+struct Spread {
+  Eigen::Matrix3f covariance;
+  Eigen::Vector3f eigenvalues_m2;
+};
+[[gnu::always_inline]] inline Spread spread_of(const CentredSums& sums) noexcept {
+  const std::array<float, 12>& v = sums.values;
+  const float inverse_count = 1.0f / v[0];
+  const Eigen::Vector3f mean = Eigen::Vector3f(v[1], v[2], v[3]) * inverse_count;
+  Eigen::Matrix3f outer;
+  outer << v[4], v[5], v[6], v[5], v[7], v[8], v[6], v[8], v[9];
+  Spread spread;
+  spread.covariance = outer * inverse_count - mean * mean.transpose();
+  spread.eigenvalues_m2 = symmetric_eigenvalues(spread.covariance).cwiseMax(0.0f);
+  return spread;
 }
 
 }  // namespace
 
 Eigen::Vector3f VoxelGrid::coarse_normal(std::int64_t bx, std::int64_t by, std::int64_t bz,
                                          float planar_ratio_sq, float min_points) noexcept {
-  double n = 0.0;
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
-  const double block_m = static_cast<double>(size_m_) * kBlockEdge;
+  CentredSums around;
+  const float block_m = size_m_ * static_cast<float>(kBlockEdge);
   for (std::int64_t dx = -1; dx <= 1; ++dx) {
     for (std::int64_t dy = -1; dy <= 1; ++dy) {
       for (std::int64_t dz = -1; dz <= 1; ++dz) {
@@ -577,55 +650,39 @@ Eigen::Vector3f VoxelGrid::coarse_normal(std::int64_t bx, std::int64_t by, std::
           block_sums_[block] = sum_block(block);
           block_summed_[block] = 1;
         }
-        const BlockSums& b = block_sums_[block];
-        const auto w = static_cast<double>(b.point_count);
-        const Eigen::Vector3d s =
-            Eigen::Vector3f(b.sum_m[0], b.sum_m[1], b.sum_m[2]).cast<double>();
-        const Eigen::Vector3d t = Eigen::Vector3d(static_cast<double>(dx), static_cast<double>(dy),
-                                                  static_cast<double>(dz)) *
-                                  block_m;
-        Eigen::Matrix3f outer_block;
-        outer_block << b.sum_outer_m2[0], b.sum_outer_m2[1], b.sum_outer_m2[2], b.sum_outer_m2[1],
-            b.sum_outer_m2[3], b.sum_outer_m2[4], b.sum_outer_m2[2], b.sum_outer_m2[4],
-            b.sum_outer_m2[5];
-        const Eigen::Matrix3d o = outer_block.cast<double>();
-        n += w;
-        sum += s + w * t;
-        outer += o + s * t.transpose() + t * s.transpose() + w * t * t.transpose();
+        around.add(block_sums_[block].moved_by({static_cast<float>(dx) * block_m,
+                                                static_cast<float>(dy) * block_m,
+                                                static_cast<float>(dz) * block_m}));
       }
     }
   }
-  if (n < static_cast<double>(min_points)) {
+  if (around.values[0] < min_points) {
     return Eigen::Vector3f::Zero();
   }
-  const Eigen::Vector3d mean = sum / n;
-  const Eigen::Matrix3d covariance = outer / n - mean * mean.transpose();
-  const Eigen::Vector3d l = symmetric_eigenvalues(covariance).cwiseMax(0.0);  // ascending
-  if (l(0) > static_cast<double>(planar_ratio_sq) * l(1)) {
+  const Spread spread = spread_of(around);
+  const Eigen::Vector3f& l = spread.eigenvalues_m2;
+  if (l(0) > planar_ratio_sq * l(1)) {
     return Eigen::Vector3f::Zero();
   }
-  return eigenvector_of(covariance, l(0)).cast<float>();
+  return eigenvector_of(spread.covariance, l(0));
 }
 
 void VoxelGrid::estimate_shape(Voxel& voxel, const BlockNeighbourhood& around,
                                float planar_ratio_sq, float line_ratio_sq,
                                float min_points) const noexcept {
   const auto cell = unpack_cell(voxel.key);
-  const std::int64_t lx = cell.x() & 3;
-  const std::int64_t ly = cell.y() & 3;
-  const std::int64_t lz = cell.z() & 3;
   std::array<AxisSpan, 2> xs;
   std::array<AxisSpan, 2> ys;
   std::array<AxisSpan, 2> zs;
-  const std::size_t nx = axis_spans(lx, xs);
-  const std::size_t ny = axis_spans(ly, ys);
-  const std::size_t nz = axis_spans(lz, zs);
-  // The neighbourhood's moments relative to this voxel's centre, summed over the occupied
-  // cells only: the set bits of each neighbouring block's live mask inside the 3 x 3 x 3 box
-  // (testing all 27 cells mispredicted a branch on every other one).
-  float n = 0.0f;
-  std::array<float, 3> sum{};
-  std::array<float, 6> outer{};  // xx xy xz yy yz zz
+  const std::size_t nx = axis_spans(cell.x() & 3, xs);
+  const std::size_t ny = axis_spans(cell.y() & 3, ys);
+  const std::size_t nz = axis_spans(cell.z() & 3, zs);
+  // The neighbourhood's moments about this block's centre, summed over the occupied cells
+  // only: the set bits of each neighbouring block's live mask inside the 3 x 3 x 3 box
+  // (testing all 27 cells mispredicted a branch on every other one). A neighbouring block's
+  // cells are summed about its own centre first and moved once.
+  const float block_m = size_m_ * static_cast<float>(kBlockEdge);
+  CentredSums total;
   for (std::size_t i = 0; i < nx; ++i) {
     for (std::size_t j = 0; j < ny; ++j) {
       for (std::size_t k = 0; k < nz; ++k) {
@@ -635,58 +692,41 @@ void VoxelGrid::estimate_shape(Voxel& voxel, const BlockNeighbourhood& around,
         const std::uint64_t live = around.live_masks[which];
         std::uint64_t cells = live & kCellsWithX[xs[i].locals] & kCellsWithY[ys[j].locals] &
                               kCellsWithZ[zs[k].locals];
+        if (cells == 0) {
+          continue;
+        }
+        CentredSums part;
         for (; cells != 0; cells &= cells - 1) {
           const auto bit = static_cast<std::uint32_t>(std::countr_zero(cells));
           // The cell's id: its block's first id plus the live cells before it in bit order.
-          const Voxel& v =
-              voxels_[around.first[which] + static_cast<std::uint32_t>(std::popcount(
-                                                live & ((std::uint64_t{1} << bit) - 1)))];
-          // Parallel axis: moments about the other voxel's centre, moved to this one's.
-          const float tx =
-              static_cast<float>(xs[i].block_offset * 4 + static_cast<int>(bit >> 4) - lx) *
-              size_m_;
-          const float ty =
-              static_cast<float>(ys[j].block_offset * 4 + static_cast<int>((bit >> 2) & 3) - ly) *
-              size_m_;
-          const float tz =
-              static_cast<float>(zs[k].block_offset * 4 + static_cast<int>(bit & 3) - lz) * size_m_;
-          const auto w = static_cast<float>(v.point_count);
-          const float sx = v.sum_m[0];
-          const float sy = v.sum_m[1];
-          const float sz = v.sum_m[2];
-          n += w;
-          sum[0] += sx + w * tx;
-          sum[1] += sy + w * ty;
-          sum[2] += sz + w * tz;
-          outer[0] += v.sum_outer_m2[0] + 2.0f * sx * tx + w * tx * tx;
-          outer[1] += v.sum_outer_m2[1] + sx * ty + tx * sy + w * tx * ty;
-          outer[2] += v.sum_outer_m2[2] + sx * tz + tx * sz + w * tx * tz;
-          outer[3] += v.sum_outer_m2[3] + 2.0f * sy * ty + w * ty * ty;
-          outer[4] += v.sum_outer_m2[4] + sy * tz + ty * sz + w * ty * tz;
-          outer[5] += v.sum_outer_m2[5] + 2.0f * sz * tz + w * tz * tz;
+          part.add(
+              centred_sums_[around.first[which] + static_cast<std::uint32_t>(std::popcount(
+                                                      live & ((std::uint64_t{1} << bit) - 1)))]);
+        }
+        if (which == kOwnBlock) {
+          total.add(part);
+        } else {
+          total.add(part.moved_by({static_cast<float>(xs[i].block_offset) * block_m,
+                                   static_cast<float>(ys[j].block_offset) * block_m,
+                                   static_cast<float>(zs[k].block_offset) * block_m}));
         }
       }
     }
   }
-  if (n < min_points) {
+  if (total.values[0] < min_points) {
     voxel.shape = LocalShape::kTooFewPoints;
     return;
   }
-  const auto count = static_cast<double>(n);
-  const Eigen::Vector3d mean = Eigen::Vector3f(sum[0], sum[1], sum[2]).cast<double>() / count;
-  Eigen::Matrix3f outer_matrix;
-  outer_matrix << outer[0], outer[1], outer[2], outer[1], outer[3], outer[4], outer[2], outer[4],
-      outer[5];
-  const Eigen::Matrix3d covariance = outer_matrix.cast<double>() / count - mean * mean.transpose();
-  const Eigen::Vector3d l = symmetric_eigenvalues(covariance).cwiseMax(0.0);  // ascending
-  if (l(1) <= static_cast<double>(line_ratio_sq) * l(2)) {
+  const Spread spread = spread_of(total);
+  const Eigen::Vector3f& l = spread.eigenvalues_m2;
+  if (l(1) <= line_ratio_sq * l(2)) {
     // Thin in two directions: points along one line (a scan line on a far surface).
     voxel.shape = LocalShape::kLinear;
-    voxel.axis = eigenvector_of(covariance, l(2)).cast<float>();
-  } else if (l(0) <= static_cast<double>(planar_ratio_sq) * l(1)) {
+    voxel.axis = eigenvector_of(spread.covariance, l(2));
+  } else if (l(0) <= planar_ratio_sq * l(1)) {
     // Wide in two directions, thin in the third: a surface.
     voxel.shape = LocalShape::kPlanar;
-    voxel.axis = eigenvector_of(covariance, l(0)).cast<float>();
+    voxel.axis = eigenvector_of(spread.covariance, l(0));
   } else {
     voxel.shape = LocalShape::kScattered;
   }

@@ -57,6 +57,11 @@ void BM_DetectPlanes(benchmark::State& state, VotingMode voting) {
   state.counters["blocks"] = static_cast<double>(detector.voxels().block_count());
   state.counters["sections"] = static_cast<double>(detector.stats().sections);
   state.counters["searched"] = static_cast<double>(detector.stats().sections_searched);
+  state.counters["planar"] = static_cast<double>(detector.stats().planar_samples);
+  state.counters["linear"] = static_cast<double>(detector.stats().linear_samples);
+  state.counters["votes"] = static_cast<double>(detector.stats().votes);
+  state.counters["peaks"] = static_cast<double>(detector.stats().peaks);
+  state.counters["section_planes"] = static_cast<double>(detector.stats().section_planes);
   state.counters["arena_MiB"] = static_cast<double>(arena.used_bytes()) / (1 << 20);
 }
 

@@ -460,10 +460,20 @@ TEST(SectionGrid, ListsEverySectionThatHoldsASampleOnceInKeyOrder) {
   // Each section gathers the samples of its 8 blocks.
   std::size_t gathered = 0;
   std::vector<std::uint32_t> ids(4096);
-  for (const CellKey section : listed) {
-    std::array<std::uint32_t, SectionGrid::kMaxBlocksPerSection> blocks{};
-    const std::size_t count = sections.find_blocks(grid, section, blocks);
-    gathered += sections.gather(grid, std::span<const std::uint32_t>(blocks.data(), count), ids);
+  for (std::size_t index = 0; index < listed.size(); ++index) {
+    // Its blocks are the occupied ones among section + {0, 1}^3, in offset order.
+    const auto s = unpack_cell(listed[index]);
+    std::vector<std::uint32_t> expected_blocks;
+    for (int o = 0; o < 8; ++o) {
+      const std::uint32_t block =
+          grid.find_block(pack_cell(s.x() + (o >> 2), s.y() + ((o >> 1) & 1), s.z() + (o & 1)));
+      if (block != CellIndex::kAbsent) {
+        expected_blocks.push_back(block);
+      }
+    }
+    const std::span<const std::uint32_t> blocks = sections.blocks_of(index);
+    EXPECT_EQ(std::vector<std::uint32_t>(blocks.begin(), blocks.end()), expected_blocks);
+    gathered += sections.gather(grid, blocks, ids);
   }
   EXPECT_EQ(gathered, 8 * grid.size());  // every sample lies in k^3 = 8 sections
 }

@@ -85,6 +85,7 @@ class OrientationGrid {
 
   std::uint32_t band_count_ = 0;  // bands 0 (the pole) .. band_count_ - 1 (the equator)
   float band_step_rad_ = 0.0f;
+  float inverse_band_step_ = 0.0f;  // bands per radian
   std::span<std::uint32_t> band_first_cell_;
   std::span<std::uint32_t> band_cells_;
   std::span<Eigen::Vector3f> cell_normal_;

@@ -63,7 +63,7 @@ class PlaneDetector {
   [[nodiscard]] std::size_t memory_bytes() const noexcept;
 
  private:
-  void detect_in_section(CellKey section) noexcept;
+  void detect_in_section(std::size_t index) noexcept;
   // Whether a sample votes at all (the local-shape mode skips scattered samples).
   [[nodiscard]] bool votes(const Voxel& voxel) const noexcept;
   void vote_sample(const Voxel& voxel, const Eigen::Vector3f& position_m) noexcept;

@@ -32,11 +32,12 @@ class SectionGrid {
   [[nodiscard]] std::span<const CellKey> sections() const noexcept {
     return sections_.first(section_count_);
   }
-  // The indexes of the occupied blocks of a section (at most 64: k <= 4).
-  static constexpr std::size_t kMaxBlocksPerSection = 64;
-  [[nodiscard]] std::size_t find_blocks(
-      const VoxelGrid& grid, CellKey section,
-      std::span<std::uint32_t, kMaxBlocksPerSection> out) const noexcept;
+  // The indexes of the occupied blocks of sections()[index] (at most k^3 <= 64), in offset
+  // order (x, then y, then z), as build() found them.
+  [[nodiscard]] std::span<const std::uint32_t> blocks_of(std::size_t index) const noexcept {
+    return section_blocks_.subspan(section_first_[index],
+                                   section_first_[index + 1] - section_first_[index]);
+  }
   // The samples of those blocks (ids into grid.voxels()), block by block; at most out.size().
   std::size_t gather(const VoxelGrid& grid, std::span<const std::uint32_t> blocks,
                      std::span<std::uint32_t> out) noexcept;
@@ -47,7 +48,8 @@ class SectionGrid {
                                              std::span<CellKey, 13> out) const noexcept;
   [[nodiscard]] const Counters& counters() const noexcept { return counters_; }
   [[nodiscard]] std::size_t memory_bytes() const noexcept {
-    return blocks_.size_bytes() + sections_.size_bytes();
+    return blocks_.size_bytes() + sections_.size_bytes() + section_first_.size_bytes() +
+           section_blocks_.size_bytes();
   }
 
  private:
@@ -55,8 +57,16 @@ class SectionGrid {
 
   std::uint32_t blocks_per_section_ = 2;
   double block_size_m_ = 0.0;
-  std::span<CellKey> blocks_;  // the occupied blocks' keys, sorted
+  struct KeyedBlock {
+    CellKey key = 0;
+    std::uint32_t block = 0;  // its index in the voxel grid
+  };
+  std::span<KeyedBlock> blocks_;  // the occupied blocks, sorted by key
   std::span<CellKey> sections_;
+  // Section i's blocks are section_blocks_[section_first_[i], section_first_[i + 1]): the
+  // merge sees them (the list heads equal to the section), so no lookup finds them again.
+  std::span<std::uint32_t> section_first_;
+  std::span<std::uint32_t> section_blocks_;
   std::size_t section_count_ = 0;
   Counters counters_;
 };
