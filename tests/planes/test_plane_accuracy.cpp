@@ -64,6 +64,39 @@ void tilt(hal::sim::TruthCloud& cloud, const WorldTilt& tilt) {
   }
 }
 
+// Why each missed face was missed: the plane nearest to it in direction and offset, if any.
+void print_missed_faces(std::span<const hal::sim::TruthFace> faces,
+                        std::span<const msg::PlanePatch> planes, const testing::PlaneScore& s) {
+  for (const int id : s.missed_faces) {
+    const auto face = std::find_if(faces.begin(), faces.end(),
+                                   [id](const hal::sim::TruthFace& f) { return f.id == id; });
+    if (face == faces.end()) {
+      continue;
+    }
+    const msg::PlanePatch* nearest = nullptr;
+    testing::FaceMatch nearest_match;
+    for (const msg::PlanePatch& plane : planes) {
+      const testing::FaceMatch match = testing::match_face(*face, plane, {});
+      if (match.angle_deg < 10.0 &&
+          (nearest == nullptr || match.offset_m < nearest_match.offset_m)) {
+        nearest = &plane;
+        nearest_match = match;
+      }
+    }
+    std::printf("  MISSED face %d %s n (%.2f %.2f %.2f) d %.2f returns %llu", id,
+                face->kind == hal::sim::SurfaceKind::kWall ? "wall" : "roof/ground",
+                face->normal.x(), face->normal.y(), face->normal.z(), face->d_m,
+                static_cast<unsigned long long>(face->returns));
+    if (nearest != nullptr) {
+      std::printf("; nearest plane %u %s: %.2f deg, %.3f m, support %.0f\n", nearest->id,
+                  std::string(msg::to_string(nearest->kind)).c_str(), nearest_match.angle_deg,
+                  nearest_match.offset_m, nearest->support);
+    } else {
+      std::printf("; no plane within 10 deg\n");
+    }
+  }
+}
+
 WorldRun detect_in_world(const std::string& world, hal::sim::PoseNoise noise = {},
                          const WorldTilt& world_tilt = {},
                          const PlanesConfig& config = city_config()) {
@@ -101,6 +134,17 @@ WorldRun detect_in_world(const std::string& world, hal::sim::PoseNoise noise = {
           plane.rmse_m, plane.centroid_m.x(), plane.centroid_m.y(), plane.centroid_m.z());
     }
   }
+  const DetectionStats& stats = detector.stats();
+  std::printf(
+      "  samples %llu: planar %llu, linear %llu, scattered %llu; sections %llu searched, "
+      "%llu section planes\n",
+      static_cast<unsigned long long>(stats.samples),
+      static_cast<unsigned long long>(stats.planar_samples),
+      static_cast<unsigned long long>(stats.linear_samples),
+      static_cast<unsigned long long>(stats.scattered_samples),
+      static_cast<unsigned long long>(stats.sections_searched),
+      static_cast<unsigned long long>(stats.section_planes));
+  print_missed_faces(cloud.faces, planes, s);
   return run;
 }
 
@@ -175,6 +219,18 @@ TEST(PlaneRobustness, UscBlockWithPoseNoise) {
   EXPECT_GE(run.score.faces_considered, 3u);
   EXPECT_GE(run.score.recall(), 0.90);
   EXPECT_GE(run.score.precision(), 0.95);
+  EXPECT_EQ(run.score.faces_reported_twice, 0u);
+}
+
+// partial's floor, well below the 90 %: 13 of 28 faces, 12 of 13 planes real. Its
+// ground and most walls across the street are lost (docs/planes.md, Robustness, says why).
+TEST(PlaneRobustness, PartialWithPoseNoise) {
+#if defined(BLOCKMAP_QUICK_WORLDS)
+  GTEST_SKIP() << "the optimized host trees drive partial with pose noise";
+#endif
+  const WorldRun run = detect_in_world("partial", kScanPoseNoise);
+  EXPECT_GE(run.score.recall(), 0.40);
+  EXPECT_GE(run.score.precision(), 0.80);
   EXPECT_EQ(run.score.faces_reported_twice, 0u);
 }
 
