@@ -1,0 +1,94 @@
+// Scan projection, the mapper's first step (the paper: "laser scans become a point cloud"):
+// each valid beam of a 2D scan becomes a 3D point in the local frame, through the laser's
+// mount on the robot and the robot's pose when the beam was taken, pitch and roll included
+// (the Segway pitches by degrees when it accelerates, which moves a point 20 m away by tens of
+// centimetres).
+//
+// A scan takes time (13 ms for an LMS2xx turn), and the robot moves and turns meanwhile: the
+// pose is interpolated between the poses at the first and the last beam, beam by beam, as the
+// simulator moves its beams. Beams without a return, flagged by the device, or outside the
+// configured range band are dropped and counted; nothing here allocates.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+
+#include <Eigen/Core>
+
+#include "blockmap/core/time.hpp"
+#include "blockmap/localize/localizer.hpp"
+#include "blockmap/msg/laser_scan.hpp"
+
+namespace blockmap::map {
+
+// A sensor's pose on the robot, in the robot frame (origin at the middle of the wheel axle, x
+// forward, y left, z up): its position, then roll, pitch and yaw applied in that order
+// (R = Rz(yaw) Ry(pitch) Rx(roll)), as the robot files give it.
+struct SensorMount {
+  Eigen::Vector3d position_m = Eigen::Vector3d::Zero();
+  double roll_rad = 0.0;
+  double pitch_rad = 0.0;
+  double yaw_rad = 0.0;
+};
+
+struct ScanProjectorConfig {
+  // The band of ranges kept: nearer returns are the robot itself or its rider, farther ones
+  // carry too much of the pose's angular error (0.5 deg is 0.35 m at 40 m).
+  double min_range_m = 0.3;
+  double max_range_m = 40.0;
+};
+
+struct ProjectionCounters {
+  std::uint64_t scans = 0;
+  std::uint64_t points = 0;            // projected
+  std::uint64_t no_return = 0;         // the device saw nothing within its range
+  std::uint64_t flagged = 0;           // dazzled, too close or a device error
+  std::uint64_t below_min_range = 0;   // valid, but nearer than min_range_m
+  std::uint64_t beyond_max_range = 0;  // valid, but farther than max_range_m
+  std::uint64_t non_finite = 0;        // a NaN or infinite range marked valid
+  std::uint64_t output_full = 0;       // beams beyond the caller's output span
+};
+
+class ScanProjector {
+ public:
+  ScanProjector(const SensorMount& mount, const ScanProjectorConfig& config) noexcept;
+
+  // When beam `beam` of `scan` was taken: the scan's stamp plus the beam's index times the
+  // time between beams (all at the stamp when the device does not say).
+  [[nodiscard]] static TimestampNs beam_stamp_ns(const msg::LaserScan& scan,
+                                                 std::uint32_t beam) noexcept;
+  [[nodiscard]] static TimestampNs last_beam_stamp_ns(const msg::LaserScan& scan) noexcept;
+
+  // Writes the scan's points (local frame) into `out` and returns how many. `first` and
+  // `last` are the robot's poses at beam_stamp_ns(scan, 0) and last_beam_stamp_ns(scan) (the
+  // same pose twice for a robot standing still or a scan without beam timing).
+  std::size_t project(const msg::LaserScan& scan, const localize::Pose3& first,
+                      const localize::Pose3& last, std::span<Eigen::Vector3f> out) noexcept;
+
+  [[nodiscard]] const ProjectionCounters& counters() const noexcept { return counters_; }
+  // What this object holds (the beam directions table lives inside it).
+  [[nodiscard]] static constexpr std::size_t memory_bytes() noexcept {
+    return sizeof(ScanProjector);
+  }
+
+ private:
+  // The beams' unit directions in the robot frame (the mount's rotation applied), computed
+  // again only when a scan's angles differ from the last one's.
+  void update_beam_directions(const msg::LaserScan& scan) noexcept;
+
+  SensorMount mount_;
+  ScanProjectorConfig config_;
+  Eigen::Matrix3d mount_rotation_ = Eigen::Matrix3d::Identity();
+  std::array<Eigen::Vector3d, msg::kMaxLaserBeams> beam_directions_{};
+  double table_start_rad_ = 0.0;
+  double table_increment_rad_ = 0.0;
+  std::uint16_t table_beams_ = 0;
+  ProjectionCounters counters_;
+};
+
+// The rotation of the robot frame into the local frame at a pose: Rz(yaw) Ry(pitch) Rx(roll),
+// positive pitch nose down (the RMP's sign).
+[[nodiscard]] Eigen::Matrix3d robot_rotation(const localize::Pose3& pose) noexcept;
+
+}  // namespace blockmap::map
