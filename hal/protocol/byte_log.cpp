@@ -2,25 +2,9 @@
 
 #include <algorithm>
 
+#include "blockmap/hal/protocol/little_endian.hpp"
+
 namespace blockmap::hal::protocol::byte_log {
-namespace {
-
-std::uint64_t read_le(std::span<const std::uint8_t> bytes) noexcept {
-  std::uint64_t value = 0;
-  for (std::size_t i = bytes.size(); i-- > 0;) {
-    value = (value << 8U) | bytes[i];
-  }
-  return value;
-}
-
-void write_le(std::uint64_t value, std::span<std::uint8_t> out) noexcept {
-  for (std::uint8_t& byte : out) {
-    byte = static_cast<std::uint8_t>(value & 0xFFU);
-    value >>= 8U;
-  }
-}
-
-}  // namespace
 
 const char* to_string(ParseError error) noexcept {
   switch (error) {
