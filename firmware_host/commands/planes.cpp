@@ -20,6 +20,7 @@
 #include "blockmap/planes/plane_detector.hpp"
 #include "cli.hpp"
 #include "commands/commands.hpp"
+#include "outputs/plane_json.hpp"
 #include "outputs/plane_picture.hpp"
 
 namespace blockmap::cli {
@@ -51,33 +52,6 @@ bool write_picture(const PlanesOptions& options, const hal::cloud::PointCloud& c
     return false;
   }
   return true;
-}
-
-// Tenths of millimetres for positions, millionths for directions: what the numbers mean, no
-// more. Dividing by the inverse gives the double nearest the decimal, which prints short.
-double rounded(double value, double unit) {
-  const double per_unit = std::round(1.0 / unit);
-  return std::round(value * per_unit) / per_unit;
-}
-
-nlohmann::json vector_json(const Eigen::Vector3d& v, double unit) {
-  return nlohmann::json::array({rounded(v.x(), unit), rounded(v.y(), unit), rounded(v.z(), unit)});
-}
-
-nlohmann::json plane_json(const msg::PlanePatch& plane, const Eigen::Vector3d& origin_m) {
-  // The detector worked relative to the cloud's origin; the list is in the file's frame.
-  nlohmann::json polygon = nlohmann::json::array();
-  for (std::size_t i = 0; i < plane.polygon_size; ++i) {
-    polygon.push_back(vector_json(plane.polygon_m[i] + origin_m, 1e-4));
-  }
-  return {{"id", plane.id},
-          {"kind", std::string(msg::to_string(plane.kind))},
-          {"normal", vector_json(plane.normal, 1e-6)},
-          {"d", rounded(plane.d_m + plane.normal.dot(origin_m), 1e-4)},
-          {"support", plane.support},
-          {"rmse", rounded(plane.rmse_m, 1e-4)},
-          {"centroid", vector_json(plane.centroid_m + origin_m, 1e-4)},
-          {"polygon", polygon}};
 }
 
 int detect_planes(const PlanesOptions& options, std::ostream& out, std::ostream& err) {
@@ -112,7 +86,7 @@ int detect_planes(const PlanesOptions& options, std::ostream& out, std::ostream&
     list.push_back(plane_json(plane, cloud.origin_m));
   }
   const nlohmann::json document = {
-      {"planes", list}, {"points", cloud.points_m.size()}, {"seconds", rounded(seconds, 1e-6)}};
+      {"planes", list}, {"points", cloud.points_m.size()}, {"seconds", rounded_to(seconds, 1e-6)}};
   const planes::DetectionStats& stats = detector.stats();
   err << "planes: " << options.cloud << " (" << cloud.format << "): " << cloud.points_m.size()
       << " points";
