@@ -30,6 +30,8 @@ Command add_planes_command(CLI::App& app);
 
 // `blockmap simulate --world NAME --out DIR`: a recorded run of the simulated robot.
 Command add_simulate_command(CLI::App& app);
+// `blockmap run [--config FILE] [--out DIR]`: the onboard mapper (the simulated city block).
+Command add_run_command(CLI::App& app);
 // `blockmap replay DIR [--out DIR2]`: the onboard pipeline over recorded device logs.
 Command add_replay_command(CLI::App& app);
 // `blockmap import TRAJECTORY --origin ... --out DIR`: device logs from a reference trajectory.

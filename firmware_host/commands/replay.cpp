@@ -1,89 +1,92 @@
 // `blockmap replay DIR [--out DIR2]`: the onboard pipeline over recorded device logs
-// (ARCHITECTURE.md 4.3-4.5, docs/log-formats.md). The recorded CAN frames and NMEA bytes go
-// through the same device layer as on the robot (SegwayBase, GpsReceiver) over log-backed
-// ports, in time order, into the localizer. This increment writes trajectory.csv: the
-// smoothed poses in the local frame (ARCHITECTURE.md 4.4); the planes and buildings arrive
-// with the streaming pipeline.
+// (ARCHITECTURE.md 4.3-4.5, docs/log-formats.md). The recorded CAN frames, NMEA bytes and
+// laser telegrams go through the same device layer as on the robot (SegwayBase, GpsReceiver,
+// Lms2xxScanner) over log-backed ports, merged in time order, into the mapper
+// (pipeline::Mapper): with --out it writes what `run` writes (ARCHITECTURE.md 4.4), without it
+// the smoothed trajectory to stdout. Laser logs are read when robot.toml names the lasers.
 #include <CLI/CLI.hpp>
 #include <chrono>
-#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <ostream>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include "blockmap/core/spsc_queue.hpp"
 #include "blockmap/hal/config/config_error.hpp"
 #include "blockmap/hal/devices/gps_receiver.hpp"
+#include "blockmap/hal/devices/laser_scanners.hpp"
 #include "blockmap/hal/devices/segway_base.hpp"
-#include "blockmap/hal/geodesy.hpp"
+#include "blockmap/hal/gps_observations.hpp"
 #include "blockmap/hal/replay/log_ports.hpp"
 #include "blockmap/hal/sim/robot.hpp"
-#include "blockmap/localize/localizer.hpp"
+#include "blockmap/hal/sim/simulated_robot.hpp"
+#include "blockmap/pipeline/mapper.hpp"
 #include "cli.hpp"
 #include "commands/commands.hpp"
 #include "commands/geodetic_option.hpp"
+#include "commands/mapping.hpp"
 
 namespace blockmap::cli {
 namespace {
 
 namespace fs = std::filesystem;
-using localize::GpsOutcome;
-using localize::Pose3;
 
 struct ReplayOptions {
   std::string dir;
-  std::string out;
-  std::string origin;  // "LAT,LON,H"; empty: the first good fix
+  MappingOptions mapping;  // out, config, udp, budget
+  std::string origin;      // "LAT,LON,H"; empty: the first good fix
   std::uint64_t seed = 1;
-  std::size_t particles = localize::LocalizeConfig{}.particle_count;
+  std::size_t particles = pipeline::MapperConfig{}.localizer.filter.particle_count;
 };
 
-constexpr TimestampNs kDayNs = 86'400 * kNanosecondsPerSecond;
-
-// The fix's UTC on the log's clock. With a date (RMC), exact; without one (GGA alone), the
-// day that puts it nearest to `near_ns` (the odometry's time), which survives midnight.
-TimestampNs fix_stamp_ns(const msg::GpsFix& fix, TimestampNs near_ns) {
-  const TimestampNs of_day_ns = static_cast<TimestampNs>(fix.utc_milliseconds_of_day) * 1'000'000;
-  if (fix.has_date) {
-    const std::chrono::sys_days day = std::chrono::year_month_day(std::chrono::year(fix.utc_year),
-                                                                  std::chrono::month(fix.utc_month),
-                                                                  std::chrono::day(fix.utc_day));
-    return static_cast<TimestampNs>(day.time_since_epoch().count()) * kDayNs + of_day_ns;
-  }
-  const TimestampNs day_start = near_ns - near_ns % kDayNs;
-  TimestampNs stamp = day_start + of_day_ns;
-  if (stamp - near_ns > kDayNs / 2) {
-    stamp -= kDayNs;
-  } else if (near_ns - stamp > kDayNs / 2) {
-    stamp += kDayNs;
-  }
-  return stamp;
+// Localization only: no lasers, and the map's capacities at their smallest.
+void shrink_to_localization(pipeline::MapperConfig& config) {
+  config.laser_count = 0;
+  config.window.max_samples = 64;
+  config.planes.max_blocks = 64;
+  config.planes.max_samples_per_section = 64;
+  config.planes.max_patches = 16;
+  config.planes.max_planes = 16;
+  config.registry.max_live_planes = 1;
+  config.registry.max_final_planes = 1;
+  config.scan_queue_capacity = 1;
 }
 
-hal::GeodeticPoint fix_point(const msg::GpsFix& fix) {
-  // Ellipsoidal height: NMEA gives the height above the geoid and the geoid's separation.
-  return {fix.latitude_deg, fix.longitude_deg,
-          fix.altitude_msl_m + (fix.has_geoid_separation ? fix.geoid_separation_m : 0.0)};
-}
-
-// The recorded devices, read in time order.
+// The recorded devices, each read as far as its next message.
 class RecordedRun {
  public:
-  RecordedRun(const fs::path& dir, const hal::devices::SegwayBaseConfig& base_config)
+  RecordedRun(const fs::path& dir, const hal::devices::SegwayBaseConfig& base_config,
+              const std::vector<hal::sim::LaserSpec>& lasers)
       : bus_((dir / "rmp.candump").string()),
         nmea_((dir / "gps.nmea").string()),
         base_(bus_, odometry_, imu_, base_config),
         gps_(nmea_, fixes_, hal::devices::GpsReceiverConfig{}) {
     static_cast<void>(base_.install_filters());
+    for (const hal::sim::LaserSpec& spec : lasers) {
+      auto laser = std::make_unique<Laser>((dir / ("laser_" + spec.name + ".bytelog")).string(),
+                                           hal::sim::lms2xx_config_for(spec));
+      lasers_.push_back(std::move(laser));
+    }
   }
   [[nodiscard]] std::string open_error() const {
-    return !bus_.ok() ? bus_.error() : (!nmea_.ok() ? nmea_.error() : std::string());
+    if (!bus_.ok()) {
+      return bus_.error();
+    }
+    if (!nmea_.ok()) {
+      return nmea_.error();
+    }
+    for (const auto& laser : lasers_) {
+      if (!laser->log.ok()) {
+        return laser->log.error();
+      }
+    }
+    return {};
   }
   // The next status group of the base; false at the end of its log.
   bool next_base(msg::OdometrySample& odometry, msg::ImuSample& imu) {
@@ -100,10 +103,30 @@ class RecordedRun {
     }
     return fixes_.try_pop(fix);
   }
+  // The next scan of laser `i`; false at the end of its log (or where it is damaged).
+  bool next_scan(std::size_t i, msg::LaserScan& scan) {
+    Laser& laser = *lasers_[i];
+    while (laser.scans.size_approx() == 0 && !laser.done) {
+      const IoStatus status = laser.device.poll(0);
+      laser.done = status == IoStatus::kClosed || status == IoStatus::kIoError;
+    }
+    return laser.scans.try_pop(scan);
+  }
+  [[nodiscard]] std::size_t laser_count() const noexcept { return lasers_.size(); }
+  [[nodiscard]] const hal::replay::ByteLogFileStream& laser_log(std::size_t i) const {
+    return lasers_[i]->log;
+  }
   [[nodiscard]] const hal::replay::CandumpFileBus& bus() const { return bus_; }
-  [[nodiscard]] const hal::devices::GpsReceiver& gps() const { return gps_; }
 
  private:
+  struct Laser {
+    Laser(const std::string& path, const hal::devices::Lms2xxScannerConfig& config)
+        : log(path), device(log, scans, config) {}
+    hal::replay::ByteLogFileStream log;
+    SpscQueue<msg::LaserScan, 4> scans;
+    hal::devices::Lms2xxScanner device;
+    bool done = false;
+  };
   hal::replay::CandumpFileBus bus_;
   hal::replay::FileByteStream nmea_;
   SpscQueue<msg::OdometrySample, 64> odometry_;
@@ -111,37 +134,86 @@ class RecordedRun {
   SpscQueue<msg::GpsFix, 16> fixes_;
   hal::devices::SegwayBase base_;
   hal::devices::GpsReceiver gps_;
+  std::vector<std::unique_ptr<Laser>> lasers_;
   bool base_done_ = false;
   bool gps_done_ = false;
 };
 
-class TrajectoryWriter {
+// The logs' next messages, handed to the mapper oldest first.
+class TimeMerge {
  public:
-  explicit TrajectoryWriter(std::ostream& out) : out_(out) {
-    out_ << "t_s,x_m,y_m,z_m,roll_rad,pitch_rad,yaw_rad\n";
-  }
-  void write(std::span<const Pose3> poses) {
-    for (const Pose3& p : poses) {
-      char line[160];
-      const int n = std::snprintf(line, sizeof line, "%.6f,%.4f,%.4f,%.4f,%.6f,%.6f,%.6f\n",
-                                  seconds_from_ns(p.stamp_ns), p.x_m, p.y_m, p.z_m, p.roll_rad,
-                                  p.pitch_rad, p.yaw_rad);
-      out_.write(line, n);
-      ++rows_;
+  TimeMerge(RecordedRun& run, hal::FixConverter& fixes)
+      : run_(run), fixes_(fixes), scans_(run.laser_count()), have_scan_(run.laser_count()) {
+    have_base_ = run_.next_base(odometry_, imu_);
+    now_ns_ = have_base_ ? odometry_.header.stamp_ns : 0;
+    next_usable_fix();
+    for (std::size_t i = 0; i < scans_.size(); ++i) {
+      scans_[i] = std::make_unique<msg::LaserScan>();
+      have_scan_[i] = run_.next_scan(i, *scans_[i]);
     }
   }
-  [[nodiscard]] std::size_t rows() const { return rows_; }
+  // Hands the oldest message to `mapper`; false when every log is done.
+  // The span of the messages handed over, s.
+  [[nodiscard]] double span_s() const noexcept {
+    return last_ns_ > first_ns_ ? seconds_from_ns(last_ns_ - first_ns_) : 0.0;
+  }
+  bool feed_next(pipeline::Mapper& mapper) {
+    constexpr TimestampNs kNever = std::numeric_limits<TimestampNs>::max();
+    const TimestampNs base_ns = have_base_ ? odometry_.header.stamp_ns : kNever;
+    const TimestampNs fix_ns = have_fix_ ? observation_.stamp_ns : kNever;
+    std::size_t laser = scans_.size();
+    TimestampNs scan_ns = kNever;
+    for (std::size_t i = 0; i < scans_.size(); ++i) {
+      if (have_scan_[i] && scans_[i]->header.stamp_ns < scan_ns) {
+        scan_ns = scans_[i]->header.stamp_ns;
+        laser = i;
+      }
+    }
+    const TimestampNs oldest_ns = std::min({base_ns, fix_ns, scan_ns});
+    if (oldest_ns == kNever) {
+      return false;
+    }
+    first_ns_ = std::min(first_ns_, oldest_ns);
+    last_ns_ = std::max(last_ns_, oldest_ns);
+    if (base_ns <= fix_ns && base_ns <= scan_ns) {
+      now_ns_ = base_ns;
+      mapper.on_base(odometry_, imu_);
+      have_base_ = run_.next_base(odometry_, imu_);
+    } else if (fix_ns <= scan_ns) {
+      mapper.on_fix(observation_, up_m_);
+      next_usable_fix();
+    } else {
+      static_cast<void>(mapper.on_scan(laser, *scans_[laser]));
+      have_scan_[laser] = run_.next_scan(laser, *scans_[laser]);
+    }
+    return true;
+  }
 
  private:
-  std::ostream& out_;
-  std::size_t rows_ = 0;
-};
+  void next_usable_fix() {
+    msg::GpsFix fix;
+    have_fix_ = false;
+    while (run_.next_fix(fix)) {
+      if (fixes_.convert(fix, now_ns_, observation_, up_m_)) {
+        have_fix_ = true;
+        return;
+      }
+    }
+  }
 
-struct FixCounts {
-  std::size_t used = 0;
-  std::size_t rejected = 0;
-  std::size_t recovered = 0;
-  std::size_t without_position = 0;
+  RecordedRun& run_;
+  hal::FixConverter& fixes_;
+  msg::OdometrySample odometry_;
+  msg::ImuSample imu_;
+  bool have_base_ = false;
+  localize::GpsObservation observation_;
+  double up_m_ = 0.0;
+  bool have_fix_ = false;
+  TimestampNs now_ns_ = 0;
+  std::vector<std::unique_ptr<msg::LaserScan>> scans_;
+  std::vector<bool> have_scan_;
+  TimestampNs first_ns_ = std::numeric_limits<TimestampNs>::max();
+  TimestampNs last_ns_ = 0;
 };
 
 int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
@@ -152,126 +224,113 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
   }
   // The robot's configuration, when the log carries it (simulated runs and our logger do).
   hal::devices::SegwayBaseConfig base_config;
-  localize::LocalizerConfig config;
-  config.filter.particle_count = options.particles;
-  config.filter.seed = options.seed;
+  hal::sim::RobotSpec robot;
+  pipeline::MapperConfig config;
   if (fs::exists(dir / "robot.toml")) {
-    const hal::sim::RobotSpec robot = hal::sim::load_robot((dir / "robot.toml").string());
+    robot = hal::sim::load_robot((dir / "robot.toml").string());
     base_config.rmp.model = robot.base.model;
     base_config.rmp.yaw_sign = robot.base.yaw_sign;
-    config.antenna_height_m = robot.gps.antenna_m.z();
+    // A laser the logger did not record (an import from odometry and GPS) is left out.
+    std::erase_if(robot.lasers, [&](const hal::sim::LaserSpec& laser) {
+      const bool recorded = fs::exists(dir / ("laser_" + laser.name + ".bytelog"));
+      if (!recorded && !options.mapping.out.empty() && !options.mapping.trajectory_only) {
+        err << "replay: no laser_" << laser.name << ".bytelog: mapping without that laser\n";
+      }
+      return !recorded;
+    });
+    config = mapper_config_for(robot, options.mapping);
   }
-  std::optional<hal::LocalEnuFrame> frame;
+  config.localizer.filter.particle_count = options.particles;
+  config.localizer.filter.seed = options.seed;
+  // Without --out, or asked to, only the trajectory is wanted: the lasers are not read.
+  const bool map_planes = !options.mapping.out.empty() && !options.mapping.trajectory_only;
+  if (!map_planes) {
+    robot.lasers.clear();
+    shrink_to_localization(config);
+  }
+  std::optional<hal::FixConverter> fixes;
   if (!options.origin.empty()) {
     const std::optional<hal::GeodeticPoint> origin = parse_origin(options.origin);
     if (!origin) {
       err << "blockmap: replay: " << kOriginFormatError << '\n';
       return kExitUsage;
     }
-    frame.emplace(*origin);
+    fixes.emplace(*origin);
+  } else {
+    fixes.emplace();
   }
-  if (const std::string problem = localize::validate(config); !problem.empty()) {
+  if (const std::string problem = pipeline::validate(config); !problem.empty()) {
     err << "blockmap: replay: " << problem << '\n';
     return kExitUsage;
   }
-
-  auto run = std::make_unique<RecordedRun>(dir, base_config);
+  auto run = std::make_unique<RecordedRun>(dir, base_config, robot.lasers);
   if (const std::string problem = run->open_error(); !problem.empty()) {
     err << "blockmap: replay: " << problem << '\n';
     return kExitFailure;
   }
-  Arena arena(localize::Localizer::arena_bytes(config));
-  localize::Localizer localizer;
-  localizer.init(arena, config);
-  arena.seal();
-
-  std::unique_ptr<std::ofstream> file;
-  std::ostream* trajectory_out = &out;
-  if (!options.out.empty()) {
-    std::error_code error;
-    fs::create_directories(options.out, error);
-    file = std::make_unique<std::ofstream>(fs::path(options.out) / "trajectory.csv");
-    if (error || !*file) {
-      err << "blockmap: replay: cannot write " << (fs::path(options.out) / "trajectory.csv")
-          << '\n';
-      return kExitFailure;
-    }
-    trajectory_out = file.get();
+  auto session = std::make_unique<MappingSession>();
+  // The memory report only when mapping: a trajectory alone is a quiet job.
+  std::ostringstream quiet;
+  if (const std::string problem =
+          session->start(config, options.mapping, out, map_planes ? err : quiet);
+      !problem.empty()) {
+    err << "blockmap: replay: " << problem << '\n';
+    return kExitFailure;
   }
-  TrajectoryWriter writer(*trajectory_out);
-  std::vector<Pose3> poses(config.filter.history_steps);
 
-  // Merge the two logs by time: each step takes whichever device's next message is older.
-  msg::OdometrySample odometry;
-  msg::ImuSample imu;
-  msg::GpsFix fix;
-  bool have_base = run->next_base(odometry, imu);
-  bool have_fix = run->next_fix(fix);
-  TimestampNs now_ns = have_base ? odometry.header.stamp_ns : 0;
-  FixCounts counts;
-  while (have_base || have_fix) {
-    const bool usable_fix = have_fix && fix.valid && fix.has_position && fix.has_time;
-    if (have_fix && !usable_fix) {
-      ++counts.without_position;
-      have_fix = run->next_fix(fix);
-      continue;
-    }
-    const TimestampNs fix_ns = have_fix ? fix_stamp_ns(fix, now_ns) : 0;
-    if (have_base && (!have_fix || odometry.header.stamp_ns <= fix_ns)) {
-      now_ns = odometry.header.stamp_ns;
-      localizer.on_base(odometry, imu);
-      have_base = run->next_base(odometry, imu);
-    } else {
-      if (!frame) {
-        frame.emplace(fix_point(fix));  // the local frame: anchored at the first good fix
-      }
-      const Eigen::Vector3d enu = frame->to_enu_m(fix_point(fix));
-      const bool differential = fix.quality == msg::GpsFixQuality::kDgps ||
-                                fix.quality == msg::GpsFixQuality::kRtkFixed ||
-                                fix.quality == msg::GpsFixQuality::kRtkFloat;
-      const localize::GpsObservation observation{fix_ns, enu.x(), enu.y(),
-                                                 fix.has_hdop ? fix.hdop : 1.0, differential};
-      switch (localizer.on_fix(observation, enu.z())) {
-        case GpsOutcome::kRejected:
-          ++counts.rejected;
-          break;
-        case GpsOutcome::kRecovered:
-          ++counts.recovered;
-          break;
-        default:
-          ++counts.used;
-          break;
-      }
-      have_fix = run->next_fix(fix);
-    }
-    writer.write(std::span<const Pose3>(poses.data(), localizer.drain_final(poses)));
+  const auto wall_start = std::chrono::steady_clock::now();
+  TimeMerge merge(*run, *fixes);
+  while (merge.feed_next(session->mapper())) {
+    session->pump();
   }
-  writer.write(std::span<const Pose3>(poses.data(), localizer.smoothed_window(poses)));
-  trajectory_out->flush();
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  if (const std::string problem = session->finish(wall_s); !problem.empty()) {
+    err << "blockmap: replay: " << problem << '\n';
+    return kExitFailure;
+  }
 
-  const localize::LocalizerCounters& c = localizer.counters();
-  err << "replay: " << c.base_samples << " base samples, " << counts.used << " fixes used, "
-      << counts.rejected << " left out as outliers, " << counts.recovered << " restarts, "
-      << counts.without_position << " without a position; " << writer.rows() << " trajectory rows";
-  if (c.odometry_jumps > 0 || c.stale_samples > 0) {
-    err << "; " << c.odometry_jumps << " odometry resets, " << c.stale_samples << " stale samples";
+  const pipeline::MapperCounters& c = session->mapper().counters();
+  const localize::LocalizerCounters& lc = session->mapper().localizer().counters();
+  const std::uint64_t used = c.fixes - c.fixes_rejected - c.fixes_recovered;
+  err << "replay: " << c.base_samples << " base samples, " << used << " fixes used, "
+      << c.fixes_rejected << " left out as outliers, " << c.fixes_recovered << " restarts, "
+      << fixes->without_position() << " without a position; "
+      << session->outputs().trajectory_rows() << " trajectory rows";
+  if (lc.odometry_jumps > 0 || lc.stale_samples > 0) {
+    err << "; " << lc.odometry_jumps << " odometry resets, " << lc.stale_samples
+        << " stale samples";
   }
   if (run->bus().lines_rejected() > 0) {
     err << "; " << run->bus().lines_rejected() << " unreadable CAN log lines (first: line "
         << run->bus().first_rejected_line() << ")";
   }
-  if (frame) {
+  if (fixes->frame()) {
     char origin[96];
-    std::snprintf(origin, sizeof origin, "; origin %.7f,%.7f,%.2f", frame->origin().latitude_deg,
-                  frame->origin().longitude_deg, frame->origin().height_m);
+    std::snprintf(origin, sizeof origin, "; origin %.7f,%.7f,%.2f",
+                  fixes->frame()->origin().latitude_deg, fixes->frame()->origin().longitude_deg,
+                  fixes->frame()->origin().height_m);
     err << origin;
   }
   err << '\n';
-  if (writer.rows() == 0) {
+  if (map_planes) {
+    session->report(err, wall_s, merge.span_s());
+  }
+  bool damaged = false;
+  for (std::size_t i = 0; i < run->laser_count(); ++i) {
+    const hal::replay::ByteLogFileStream& log = run->laser_log(i);
+    if (log.damage() != hal::protocol::byte_log::ParseError::kNone) {
+      err << "blockmap: replay: laser_" << robot.lasers[i].name << ".bytelog is damaged at byte "
+          << log.damage_offset() << " (" << hal::protocol::byte_log::to_string(log.damage())
+          << "): the scans before it were mapped\n";
+      damaged = true;
+    }
+  }
+  if (session->outputs().trajectory_rows() == 0) {
     err << "blockmap: replay: no pose: the logs have no odometry, or no usable GPS fix\n";
     return kExitFailure;
   }
-  return kExitOk;
+  return damaged ? kExitFailure : kExitOk;
 }
 
 }  // namespace
@@ -279,13 +338,24 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
 Command add_replay_command(CLI::App& app) {
   CLI::App* command = app.add_subcommand(
       "replay",
-      "Run the onboard pipeline over recorded device logs (rmp.candump, gps.nmea); writes "
-      "trajectory.csv");
+      "Run the onboard pipeline over recorded device logs (rmp.candump, gps.nmea, "
+      "laser_<name>.bytelog): writes what run writes");
   auto options = std::make_shared<ReplayOptions>();
   command->add_option("DIR", options->dir, "the folder of device logs (docs/log-formats.md)")
       ->required();
-  command->add_option("--out", options->out,
-                      "the folder to write into (default: trajectory.csv to stdout)");
+  command->add_option("--out", options->mapping.out,
+                      "the folder to write into (default: only trajectory.csv, to stdout)");
+  command->add_option("--config", options->mapping.config,
+                      "a TOML file whose [planes] table sets the detector (config/planes.toml)");
+  command->add_option("--udp", options->mapping.udp,
+                      "also send each binary plane-stream record to HOST:PORT");
+  command
+      ->add_option("--budget-mib", options->mapping.budget_mib,
+                   "the memory budget the configured capacities must fit in")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  command->add_flag("--trajectory-only", options->mapping.trajectory_only,
+                    "localize only: write trajectory.csv, read no laser log");
   command->add_option("--origin", options->origin,
                       "the local frame's origin as LAT,LON,HEIGHT (default: the first good fix)");
   command->add_option("--seed", options->seed, "the particle filter's seed")->capture_default_str();

@@ -19,6 +19,8 @@ const char* change_key(hal::protocol::plane_stream::Change change) {
       return "changed";
     case hal::protocol::plane_stream::Change::kFinalized:
       return "finalized";
+    case hal::protocol::plane_stream::Change::kRemoved:
+      return "removed";
   }
   return "changed";
 }
@@ -51,7 +53,8 @@ nlohmann::json plane_update_json(
   nlohmann::json update = {{"t_s", rounded_to(seconds_from_ns(stamp_ns), 1e-6)},
                            {"added", nlohmann::json::array()},
                            {"changed", nlohmann::json::array()},
-                           {"finalized", nlohmann::json::array()}};
+                           {"finalized", nlohmann::json::array()},
+                           {"removed", nlohmann::json::array()}};
   for (const hal::protocol::plane_stream::PlaneChange& change : changes) {
     update[change_key(change.change)].push_back(plane_json(change.plane));
   }

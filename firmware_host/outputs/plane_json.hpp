@@ -23,7 +23,8 @@ namespace blockmap::cli {
 [[nodiscard]] nlohmann::json plane_json(const msg::PlanePatch& plane,
                                         const Eigen::Vector3d& origin_m = Eigen::Vector3d::Zero());
 
-// One update: {"t_s": seconds, "added": [planes], "changed": [planes], "finalized": [planes]},
+// One update: {"t_s": seconds, "added": [planes], "changed": [planes], "finalized": [planes],
+// "removed": [planes]},
 // every key present (an empty list when nothing changed that way).
 [[nodiscard]] nlohmann::json plane_update_json(
     TimestampNs stamp_ns, std::span<const hal::protocol::plane_stream::PlaneChange> changes);

@@ -18,10 +18,11 @@ std::size_t capacity(TableReader& table, std::string_view key, std::size_t fallb
 
 }  // namespace
 
-planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view source) {
+planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view source,
+                                         const planes::PlanesConfig& base) {
   const toml::table document = parse_document(text, source);
   TableReader root(document, std::string(source), "");
-  planes::PlanesConfig c;
+  planes::PlanesConfig c = base;
   auto table = root.table("planes");
   if (!table) {
     return c;
@@ -74,6 +75,13 @@ planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view
   c.min_roof_height_m = t.number_or("min_roof_height_m", c.min_roof_height_m);
   c.min_reported_support = t.number_or("min_reported_support", c.min_reported_support);
   c.max_samples = capacity(t, "max_samples", c.max_samples);
+  if (const std::int64_t blocks =
+          t.integer_or("max_blocks", static_cast<std::int64_t>(c.max_blocks));
+      blocks < 0) {
+    t.fail("max_blocks", "must be >= 0 (0: as many as max_samples)");
+  } else {
+    c.max_blocks = static_cast<std::size_t>(blocks);
+  }
   c.max_samples_per_section = capacity(t, "max_samples_per_section", c.max_samples_per_section);
   c.max_patches = capacity(t, "max_patches", c.max_patches);
   c.max_planes = capacity(t, "max_planes", c.max_planes);
@@ -85,14 +93,15 @@ planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view
   return c;
 }
 
-planes::PlanesConfig load_planes_config(const std::filesystem::path& path) {
+planes::PlanesConfig load_planes_config(const std::filesystem::path& path,
+                                        const planes::PlanesConfig& base) {
   std::ifstream file(path);
   if (!file) {
     throw ConfigError(path.string() + ": cannot open");
   }
   std::ostringstream text;
   text << file.rdbuf();
-  return parse_planes_config(text.str(), path.string());
+  return parse_planes_config(text.str(), path.string(), base);
 }
 
 }  // namespace blockmap::hal::config

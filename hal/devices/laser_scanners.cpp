@@ -28,6 +28,9 @@ IoStatus write_text(ByteStream& port, std::string_view text) {
 void ScanPublisher::publish(const msg::LaserScan& scan) {
   stamped_ = scan;
   stamped_.header.stamp_ns -= latency_ns_;
+  if (stamped_.time_increment_s == 0.0) {
+    stamped_.time_increment_s = beam_interval_s_;
+  }
   if (scans_.try_push(stamped_)) {
     published_.increment();
   } else {
@@ -37,7 +40,19 @@ void ScanPublisher::publish(const msg::LaserScan& scan) {
 
 Lms2xxScanner::Lms2xxScanner(ByteStream& port, SpscQueueRef<msg::LaserScan>& scans,
                              const Lms2xxScannerConfig& config)
-    : ScanPublisher(scans, config.latency_ns), port_(port), decoder_(config.codec) {}
+    : ScanPublisher(scans, config.latency_ns, config.beam_interval_s),
+      port_(port),
+      decoder_(config.codec) {}
+
+Lms2xxScannerConfig lms2xx_single_turn_timing(double field_deg, double resolution_deg,
+                                              double processing_s) {
+  constexpr double kMirrorTurnS = 1.0 / 75.0;
+  Lms2xxScannerConfig config;
+  config.beam_interval_s = resolution_deg / 360.0 * kMirrorTurnS;
+  // From the first beam to the end of the half turn: (180 + field) / 720 of a turn.
+  config.latency_ns = ns_from_seconds((180.0 + field_deg) / 720.0 * kMirrorTurnS + processing_s);
+  return config;
+}
 
 IoStatus Lms2xxScanner::start() {
   std::array<std::uint8_t, lms::kRequestBufferBytes> request{};

@@ -133,7 +133,7 @@ ParseError read_entry(std::span<const std::uint8_t> bytes, std::size_t& offset,
   }
   const std::uint8_t change = bytes[offset];
   const std::uint8_t kind = bytes[offset + 1];
-  if (change < 1 || change > 3) {
+  if (change < 1 || change > 4) {
     return ParseError::kBadChange;
   }
   if (kind > 3) {

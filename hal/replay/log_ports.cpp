@@ -1,11 +1,13 @@
 #include "blockmap/hal/replay/log_ports.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <string_view>
 #include <system_error>
 
 #include "blockmap/hal/protocol/candump.hpp"
+#include "blockmap/hal/protocol/little_endian.hpp"
 
 namespace blockmap::hal::replay {
 
@@ -99,6 +101,86 @@ ReadResult FileByteStream::do_read(std::span<std::uint8_t> buffer, TimestampNs /
 
 WriteResult FileByteStream::do_write(std::span<const std::uint8_t> /*bytes*/,
                                      TimestampNs /*timeout_ns*/) {
+  return {IoStatus::kInvalidArgument, 0};
+}
+
+ByteLogFileStream::ByteLogFileStream(const std::string& path) : file_(path) {
+  if (!file_.ok()) {
+    error_ = file_.error();
+    return;
+  }
+  std::array<std::uint8_t, 8> magic{};
+  if (std::fread(magic.data(), 1, magic.size(), file_.get()) != magic.size() ||
+      !protocol::byte_log::has_magic(magic)) {
+    error_ = path + ": not a byte log (it does not start with BMBYTES1)";
+    return;
+  }
+  offset_ = magic.size();
+  record_.reserve(protocol::byte_log::kRecordHeaderBytes + 4096);
+}
+
+bool ByteLogFileStream::load_next() {
+  namespace byte_log = protocol::byte_log;
+  while (!ended_) {
+    record_.resize(byte_log::kRecordHeaderBytes);
+    const std::size_t got = std::fread(record_.data(), 1, record_.size(), file_.get());
+    if (got == 0) {
+      ended_ = true;  // the end of the log
+      return false;
+    }
+    // Read the record's bytes as its header says (at most kMaxRecordBytes), then let the
+    // codec check the whole record.
+    std::size_t length = 0;
+    if (got == record_.size()) {
+      length = std::min<std::size_t>(
+          protocol::read_le(std::span<const std::uint8_t>(record_).subspan(8, 4)),
+          byte_log::kMaxRecordBytes + std::size_t{1});
+      record_.resize(byte_log::kRecordHeaderBytes + length);
+      const std::size_t data =
+          std::fread(record_.data() + byte_log::kRecordHeaderBytes, 1, length, file_.get());
+      record_.resize(byte_log::kRecordHeaderBytes + data);
+    } else {
+      record_.resize(got);
+    }
+    byte_log::Reader reader(record_);
+    byte_log::Record record;
+    const byte_log::ParseError error = reader.next(record);
+    if (error != byte_log::ParseError::kNone) {
+      damage_ = error;
+      damage_offset_ = offset_;
+      ended_ = true;
+      return false;
+    }
+    offset_ += record_.size();
+    if (record.header.direction == byte_log::Direction::kFromDevice && record.header.length > 0) {
+      stamp_ns_ = record.header.stamp_ns;
+      length_ = record.header.length;
+      consumed_ = 0;
+      return true;
+    }
+  }
+  return false;
+}
+
+ReadResult ByteLogFileStream::do_read(std::span<std::uint8_t> buffer, TimestampNs /*timeout_ns*/) {
+  if (!ok()) {
+    return {IoStatus::kClosed, 0, 0};
+  }
+  if (consumed_ == length_ && !load_next()) {
+    return {
+        damage_ != protocol::byte_log::ParseError::kNone ? IoStatus::kIoError : IoStatus::kClosed,
+        0, 0};
+  }
+  const std::size_t n = std::min(buffer.size(), length_ - consumed_);
+  std::copy_n(record_.begin() +
+                  static_cast<std::ptrdiff_t>(protocol::byte_log::kRecordHeaderBytes + consumed_),
+              n, buffer.begin());
+  consumed_ += n;
+  return {IoStatus::kOk, n, stamp_ns_};
+}
+
+WriteResult ByteLogFileStream::do_write(std::span<const std::uint8_t> /*bytes*/,
+                                        TimestampNs /*timeout_ns*/) {
   return {IoStatus::kInvalidArgument, 0};
 }
 

@@ -128,6 +128,7 @@ double ParticleFilter::gaussian() noexcept {
 
 void ParticleFilter::predict(TimestampNs stamp_ns, double distance_m,
                              double yaw_rate_radps) noexcept {
+  ++version_;
   const double dt_s = have_stamp_ ? std::max(0.0, seconds_from_ns(stamp_ns - last_stamp_ns_)) : 0.0;
   have_stamp_ = true;
   last_stamp_ns_ = std::max(last_stamp_ns_, stamp_ns);
@@ -193,6 +194,7 @@ ParticleFilter::FixError ParticleFilter::fix_error(const GpsObservation& fix) co
 }
 
 GpsOutcome ParticleFilter::update(const GpsObservation& fix) noexcept {
+  ++version_;
   const FixError error = fix_error(fix);
   if (!started_) {
     start_at(fix, config_.initial_position_sigma_m, false);
@@ -555,6 +557,18 @@ std::size_t ParticleFilter::smoothed_window(std::span<Pose2> out) const noexcept
   return n;
 }
 
+Pose2 ParticleFilter::interpolate(const Pose2& earlier, const Pose2& later,
+                                  TimestampNs stamp_ns) noexcept {
+  const double span_s = seconds_from_ns(later.stamp_ns - earlier.stamp_ns);
+  const double f = span_s > 0.0 ? seconds_from_ns(stamp_ns - earlier.stamp_ns) / span_s : 0.0;
+  Pose2 out;
+  out.stamp_ns = stamp_ns;
+  out.x_m = earlier.x_m + f * (later.x_m - earlier.x_m);
+  out.y_m = earlier.y_m + f * (later.y_m - earlier.y_m);
+  out.yaw_rad = wrap_angle(earlier.yaw_rad + f * wrap_angle(later.yaw_rad - earlier.yaw_rad));
+  return out;
+}
+
 bool ParticleFilter::pose_at(TimestampNs stamp_ns, Pose2& out) const noexcept {
   if (!started_ || history_size_ == 0) {
     return false;
@@ -566,6 +580,18 @@ bool ParticleFilter::pose_at(TimestampNs stamp_ns, Pose2& out) const noexcept {
   // On the smoothed path: the current particles' weighted ancestry at the history steps, as
   // smoothed_window() gives it, and their weighted mean after the newest step. One particle's
   // path would carry that particle's own noise (degrees of heading with thousands of them).
+  // After the newest step (where a mapper asks, twice per scan), the two ends are kept until
+  // the filter changes: each costs a pass over the particles.
+  if (stamp_ns >= history_stamps_[history_newest_]) {
+    if (newest_span_version_ != version_) {
+      newest_span_later_ = estimate();
+      start_lineages();
+      newest_span_earlier_ = lineage_pose(0);
+      newest_span_version_ = version_;
+    }
+    out = interpolate(newest_span_earlier_, newest_span_later_, stamp_ns);
+    return true;
+  }
   Pose2 later = estimate();
   start_lineages();
   for (std::size_t age = 0; age < history_size_; ++age) {
@@ -574,12 +600,7 @@ bool ParticleFilter::pose_at(TimestampNs stamp_ns, Pose2& out) const noexcept {
     }
     const Pose2 earlier = lineage_pose(age);
     if (earlier.stamp_ns <= stamp_ns) {
-      const double span_s = seconds_from_ns(later.stamp_ns - earlier.stamp_ns);
-      const double f = span_s > 0.0 ? seconds_from_ns(stamp_ns - earlier.stamp_ns) / span_s : 0.0;
-      out.stamp_ns = stamp_ns;
-      out.x_m = earlier.x_m + f * (later.x_m - earlier.x_m);
-      out.y_m = earlier.y_m + f * (later.y_m - earlier.y_m);
-      out.yaw_rad = wrap_angle(earlier.yaw_rad + f * wrap_angle(later.yaw_rad - earlier.yaw_rad));
+      out = interpolate(earlier, later, stamp_ns);
       return true;
     }
     later = earlier;

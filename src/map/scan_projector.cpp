@@ -38,6 +38,13 @@ TimestampNs ScanProjector::last_beam_stamp_ns(const msg::LaserScan& scan) noexce
   return beam_stamp_ns(scan, scan.beam_count > 0 ? scan.beam_count - 1U : 0U);
 }
 
+void ScanProjector::scan_plane(const localize::Pose3& pose, Eigen::Vector3d& origin_m,
+                               Eigen::Vector3d& normal) const noexcept {
+  const Eigen::Matrix3d rotation = robot_rotation(pose);
+  origin_m = position_of(pose) + rotation * mount_.position_m;
+  normal = rotation * mount_rotation_.col(2);  // beams sweep the laser's x-y plane
+}
+
 void ScanProjector::update_beam_directions(const msg::LaserScan& scan) noexcept {
   if (scan.beam_count == table_beams_ && scan.start_angle_rad == table_start_rad_ &&
       scan.angle_increment_rad == table_increment_rad_) {

@@ -31,9 +31,8 @@ void PlaneDetector::init(Arena& arena, const PlanesConfig& config) {
   config_ = config;
   orientations_.init(arena, config.angle_bin_deg, config.orientation_mode,
                      config.orientation_tolerance_deg, config.normal_kernel_deg);
-  voxels_.init(arena, config.sample_size_m, config.max_samples);
-  // A block per sample at most.
-  sections_.init(arena, config.max_samples,
+  voxels_.init(arena, config.sample_size_m, config.max_samples, block_capacity(config));
+  sections_.init(arena, block_capacity(config),
                  whole_ratio(config.section_size_m, config.section_stride_m),
                  config.section_stride_m);
   // d relative to the section centre reaches half the section's diagonal.
@@ -42,7 +41,8 @@ void PlaneDetector::init(Arena& arena, const PlanesConfig& config) {
   accumulator_.init(arena, orientations_, half_range_m, config.d_bin_m,
                     config.max_samples_per_section * 32);
   merger_.init(arena, config);
-  block_free_points_ = arena.allocate_array<std::uint32_t>(config.max_samples, "planes.detector");
+  block_free_points_ =
+      arena.allocate_array<std::uint32_t>(block_capacity(config), "planes.detector");
   section_samples_ =
       arena.allocate_array<std::uint32_t>(config.max_samples_per_section, "planes.detector");
   section_positions_ =
@@ -67,10 +67,10 @@ std::size_t PlaneDetector::arena_budget_bytes(const PlanesConfig& config) noexce
                OrientationGrid::kMaxNeighbours * sizeof(OrientationGrid::Neighbour) + 1);
   const double half_range = 0.5 * std::sqrt(3.0) * config.section_size_m + config.d_bin_m;
   const double d_bins = 2.0 * std::ceil(half_range / config.d_bin_m);
-  const auto samples = static_cast<double>(config.max_samples);
-  const auto voxels = static_cast<double>(VoxelGrid::arena_bytes(config.max_samples));
+  const auto voxels =
+      static_cast<double>(VoxelGrid::arena_bytes(config.max_samples, block_capacity(config)));
   const auto sections = static_cast<double>(SectionGrid::arena_bytes(
-      config.max_samples, whole_ratio(config.section_size_m, config.section_stride_m)));
+      block_capacity(config), whole_ratio(config.section_size_m, config.section_stride_m)));
   const double accumulator =
       cells * d_bins * sizeof(float) +
       static_cast<double>(config.max_samples_per_section) * 32 * sizeof(std::uint32_t);
@@ -79,7 +79,7 @@ std::size_t PlaneDetector::arena_budget_bytes(const PlanesConfig& config) noexce
   const double merger = patches * (sizeof(SectionPlane) + 2 * sizeof(std::uint32_t) +
                                    4 * (sizeof(Eigen::Vector3d) + 2 * sizeof(Eigen::Vector2d))) +
                         planes * (sizeof(msg::PlanePatch) + 1100.0) + 4096.0;
-  const double section = samples * sizeof(std::uint32_t) +
+  const double section = static_cast<double>(block_capacity(config)) * sizeof(std::uint32_t) +
                          static_cast<double>(config.max_samples_per_section) *
                              (2 * sizeof(std::uint32_t) + sizeof(Eigen::Vector3f)) +
                          static_cast<double>(config.max_planes_per_section) * sizeof(HoughPeak);
@@ -129,6 +129,7 @@ std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
   stats_.section_planes = merger_.section_plane_count();
   const std::span<const msg::PlanePatch> planes = merger_.merge(sections_);
   stats_.planes = planes.size();
+  stats_.planes_excluded = merger_.counters().planes_excluded;
   stats_.overflows =
       sections_.counters().sections_dropped_full + sections_.counters().voxels_dropped_full +
       merger_.counters().section_planes_dropped_full + merger_.counters().planes_dropped_full;

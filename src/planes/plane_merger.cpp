@@ -48,6 +48,7 @@ void PlaneMerger::init(Arena& arena, const PlanesConfig& config) {
       arena.allocate_array<Eigen::Vector2d>(4 * config.max_patches + 1, "planes.merger");
   scratch_other_ = arena.allocate_array<Eigen::Vector2d>(msg::kMaxPolygonVertices, "planes.merger");
   output_ = arena.allocate_array<msg::PlanePatch>(config.max_planes, "planes.merger");
+  output_moments_ = arena.allocate_array<PointMoments>(config.max_planes, "planes.merger");
   clear();
 }
 
@@ -273,6 +274,37 @@ std::size_t PlaneMerger::merge_candidates() noexcept {
       order.begin(), order.end(), [this](std::uint32_t i) { return candidates_[i].alive; }));
 }
 
+void PlaneMerger::set_exclusions(std::span<const PlaneExclusion> exclusions) noexcept {
+  exclusion_count_ = std::min(exclusions.size(), exclusions_.size());
+  std::copy_n(exclusions.begin(), exclusion_count_, exclusions_.begin());
+}
+
+bool PlaneMerger::excluded(const Candidate& c) const noexcept {
+  for (std::size_t k = 0; k < exclusion_count_; ++k) {
+    const PlaneExclusion& e = exclusions_[k];
+    const Eigen::Vector3d& n = c.fit.normal_unit;
+    if (std::abs(n.dot(e.normal)) < e.cos_max_angle) {
+      continue;
+    }
+    for (const Eigen::Vector3d& origin : e.origins_m) {
+      if (std::abs(n.dot(origin) - c.fit.d_m) <= e.distance_m) {
+        return true;
+      }
+    }
+  }
+  return false;
+}
+
+void PlaneMerger::drop_excluded() noexcept {
+  for (std::size_t i = 0; i < candidate_count_; ++i) {
+    Candidate& c = candidates_[i];
+    if (c.alive && excluded(c)) {
+      c.alive = false;
+      ++counters_.planes_excluded;
+    }
+  }
+}
+
 void PlaneMerger::label_and_emit() noexcept {
   const double sin_vertical = sin_deg(config_.label_tolerance_deg);
   const double cos_horizontal = cos_deg(config_.label_tolerance_deg);
@@ -350,6 +382,7 @@ void PlaneMerger::label_and_emit() noexcept {
     plane.centroid_m = c.fit.centroid_m;
     plane.polygon_size = c.polygon_size;
     std::copy(c.polygon_m.begin(), c.polygon_m.begin() + c.polygon_size, plane.polygon_m.begin());
+    plane.id = i;  // the candidate, until the planes are numbered below
     output_[output_count_++] = plane;
   }
   // Largest first, numbered from 1.
@@ -362,6 +395,7 @@ void PlaneMerger::label_and_emit() noexcept {
                      std::tie(b.centroid_m.x(), b.centroid_m.y(), b.centroid_m.z());
             });
   for (std::size_t i = 0; i < output_count_; ++i) {
+    output_moments_[i] = candidates_[output_[i].id].moments;
     output_[i].id = static_cast<std::uint32_t>(i + 1);
   }
 }
@@ -370,6 +404,7 @@ std::span<const msg::PlanePatch> PlaneMerger::merge(const SectionGrid& sections)
   join_neighbouring_section_planes(sections);
   build_candidates();
   merge_candidates();
+  drop_excluded();
   label_and_emit();
   return output_.first(output_count_);
 }
@@ -377,7 +412,8 @@ std::span<const msg::PlanePatch> PlaneMerger::merge(const SectionGrid& sections)
 std::size_t PlaneMerger::memory_bytes() const noexcept {
   return planes_.size_bytes() + parent_.size_bytes() + member_order_.size_bytes() +
          candidates_.size_bytes() + scratch_points_.size_bytes() + scratch_2d_.size_bytes() +
-         scratch_hull_.size_bytes() + scratch_other_.size_bytes() + output_.size_bytes();
+         scratch_hull_.size_bytes() + scratch_other_.size_bytes() + output_.size_bytes() +
+         output_moments_.size_bytes();
 }
 
 }  // namespace blockmap::planes

@@ -68,6 +68,9 @@ std::string validate(const PlanesConfig& c) {
   if (c.max_samples >= (std::size_t{1} << 31) || c.max_patches >= (std::size_t{1} << 31)) {
     return "max_samples and max_patches must be < 2^31";
   }
+  if (c.max_blocks > c.max_samples) {
+    return "max_blocks must be at most max_samples (0: as many)";
+  }
   if (c.max_patches < c.max_planes) {
     return "max_patches must be >= max_planes";
   }

@@ -68,7 +68,8 @@ std::size_t CellIndex::arena_bytes(std::size_t max_keys) noexcept {
 
 // ---- VoxelGrid ----
 
-void VoxelGrid::init(Arena& arena, double voxel_size_m, std::size_t max_voxels) {
+void VoxelGrid::init(Arena& arena, double voxel_size_m, std::size_t max_voxels,
+                     std::size_t max_blocks) {
   BLOCKMAP_CHECK_MSG(voxel_size_m > 0.0 && max_voxels > 0, "voxel size and capacity must be > 0");
   voxel_size_m_ = voxel_size_m;
   inverse_size_ = static_cast<float>(1.0 / voxel_size_m);
@@ -81,27 +82,29 @@ void VoxelGrid::init(Arena& arena, double voxel_size_m, std::size_t max_voxels) 
   slots_in_use_ = arena.allocate_array<std::uint32_t>(max_voxels, "planes.voxel_grid");
   voxels_ = arena.allocate_array<Voxel>(max_voxels, "planes.voxel_grid");
   // At most one block per voxel.
-  block_index_.init(arena, max_voxels, "planes.voxel_grid");
-  block_keys_ = arena.allocate_array<CellKey>(max_voxels, "planes.voxel_grid");
-  block_masks_ = arena.allocate_array<std::uint64_t>(max_voxels, "planes.voxel_grid");
-  live_masks_ = arena.allocate_array<std::uint64_t>(max_voxels, "planes.voxel_grid");
-  block_first_ = arena.allocate_array<std::uint32_t>(max_voxels, "planes.voxel_grid");
-  block_order_ = arena.allocate_array<BlockOrder>(max_voxels, "planes.voxel_grid");
+  const std::size_t blocks = max_blocks == 0 ? max_voxels : std::min(max_blocks, max_voxels);
+  block_index_.init(arena, blocks, "planes.voxel_grid");
+  block_keys_ = arena.allocate_array<CellKey>(blocks, "planes.voxel_grid");
+  block_masks_ = arena.allocate_array<std::uint64_t>(blocks, "planes.voxel_grid");
+  live_masks_ = arena.allocate_array<std::uint64_t>(blocks, "planes.voxel_grid");
+  block_first_ = arena.allocate_array<std::uint32_t>(blocks, "planes.voxel_grid");
+  block_order_ = arena.allocate_array<BlockOrder>(blocks, "planes.voxel_grid");
   centred_sums_ = arena.allocate_array<CentredSums>(max_voxels, "planes.voxel_grid");
-  block_sums_ = arena.allocate_array<CentredSums>(max_voxels, "planes.voxel_grid");
-  block_summed_ = arena.allocate_array<std::uint8_t>(max_voxels, "planes.voxel_grid");
+  block_sums_ = arena.allocate_array<CentredSums>(blocks, "planes.voxel_grid");
+  block_summed_ = arena.allocate_array<std::uint8_t>(blocks, "planes.voxel_grid");
   slot_count_ = 0;
   clear();
 }
 
-std::size_t VoxelGrid::arena_bytes(std::size_t max_voxels) noexcept {
+std::size_t VoxelGrid::arena_bytes(std::size_t max_voxels, std::size_t max_blocks) noexcept {
+  const std::size_t blocks = max_blocks == 0 ? max_voxels : max_blocks;
   const std::size_t slots = std::bit_ceil(std::max<std::size_t>(2 * max_voxels, 64));
   constexpr std::size_t kAlignment = 64;  // per allocation, at most
   return slots * sizeof(VoxelSums) +
-         max_voxels * (sizeof(std::uint32_t) + sizeof(Voxel) + sizeof(CellKey) +
-                       2 * sizeof(std::uint64_t) + sizeof(std::uint32_t) + sizeof(BlockOrder) +
-                       2 * sizeof(CentredSums) + sizeof(std::uint8_t)) +
-         CellIndex::arena_bytes(max_voxels) + 11 * kAlignment;
+         max_voxels * (sizeof(std::uint32_t) + sizeof(Voxel) + sizeof(CentredSums)) +
+         blocks * (sizeof(CellKey) + 2 * sizeof(std::uint64_t) + sizeof(std::uint32_t) +
+                   sizeof(BlockOrder) + sizeof(CentredSums) + sizeof(std::uint8_t)) +
+         CellIndex::arena_bytes(blocks) + 11 * kAlignment;
 }
 
 std::size_t VoxelGrid::count_voxels(std::span<const Eigen::Vector3f> points_m, double voxel_size_m,
@@ -161,24 +164,28 @@ std::uint32_t VoxelGrid::find_or_create(CellKey key) noexcept {
       return static_cast<std::uint32_t>(slot);
     }
     if (voxel.key == kNoCell) {
-      if (slot_count_ == slots_in_use_.size()) {
+      const auto cell = unpack_cell(key);
+      if (slot_count_ == slots_in_use_.size() || !mark_in_block(cell.x(), cell.y(), cell.z())) {
         return CellIndex::kAbsent;
       }
       voxel = VoxelSums{.key = key};
       slots_in_use_[slot_count_++] = static_cast<std::uint32_t>(slot);
-      const auto cell = unpack_cell(key);
-      mark_in_block(cell.x(), cell.y(), cell.z());
       return static_cast<std::uint32_t>(slot);
     }
   }
 }
 
-void VoxelGrid::mark_in_block(std::int64_t x, std::int64_t y, std::int64_t z) noexcept {
+bool VoxelGrid::mark_in_block(std::int64_t x, std::int64_t y, std::int64_t z) noexcept {
   std::uint32_t block = 0;
-  // As many blocks as voxels at most: the insert cannot fail when the voxel was created.
   const CellKey key = block_of_cell(x, y, z);
-  if (block_index_.find_or_insert(key, static_cast<std::uint32_t>(block_count_), block) &&
-      block == block_count_) {
+  if (block_count_ == block_keys_.size()) {
+    // Full: only a block that exists already can take the cell.
+    block = block_index_.find(key);
+    if (block == CellIndex::kAbsent) {
+      return false;
+    }
+  } else if (block_index_.find_or_insert(key, static_cast<std::uint32_t>(block_count_), block) &&
+             block == block_count_) {
     block_keys_[block_count_] = key;
     block_masks_[block_count_] = 0;
     live_masks_[block_count_] = 0;
@@ -186,6 +193,7 @@ void VoxelGrid::mark_in_block(std::int64_t x, std::int64_t y, std::int64_t z) no
     ++block_count_;
   }
   block_masks_[block] |= std::uint64_t{1} << bit_in_block(x, y, z);
+  return true;
 }
 
 namespace {
@@ -310,8 +318,8 @@ Eigen::Vector3f VoxelGrid::centroid_m(const VoxelSums& voxel) const noexcept {
   return centre_m(voxel.key) + Eigen::Vector3f(voxel.sum_m[0], voxel.sum_m[1], voxel.sum_m[2]) / n;
 }
 
-PointMoments VoxelGrid::moments(const VoxelSums& voxel,
-                                const Eigen::Vector3d& origin_m) const noexcept {
+PointMoments VoxelGrid::moments_of(const VoxelSums& voxel, double voxel_size_m,
+                                   const Eigen::Vector3d& origin_m) noexcept {
   PointMoments local;
   local.weight = voxel.point_count;
   local.sum = Eigen::Vector3f(voxel.sum_m[0], voxel.sum_m[1], voxel.sum_m[2]).cast<double>();
@@ -319,7 +327,9 @@ PointMoments VoxelGrid::moments(const VoxelSums& voxel,
   Eigen::Matrix3f outer;
   outer << s[0], s[1], s[2], s[1], s[3], s[4], s[2], s[4], s[5];
   local.sum_outer = outer.cast<double>();
-  return local.shifted(centre_m(voxel.key).cast<double>() - origin_m);
+  const Eigen::Vector3d centre =
+      ((unpack_cell(voxel.key).cast<double>().array() + 0.5) * voxel_size_m).matrix();
+  return local.shifted(centre.cast<float>().cast<double>() - origin_m);
 }
 
 inline VoxelGrid::LocatedPoint VoxelGrid::locate(const Eigen::Vector3f& point_m,
@@ -393,6 +403,32 @@ inline void VoxelGrid::accumulate(const LocatedPoint& point, int sign) noexcept 
 
 void VoxelGrid::add_point(const Eigen::Vector3f& point_m) noexcept {
   accumulate(locate(point_m, inverse_size_), 1);
+}
+
+void VoxelGrid::add_sums(const VoxelSums& sums) noexcept {
+  if (sums.point_count == 0) {
+    return;
+  }
+  const Eigen::Matrix<std::int64_t, 3, 1> cell = unpack_cell(sums.key);
+  if (!cell_in_range(cell.x(), cell.y(), cell.z())) {
+    counters_.points_dropped_range += sums.point_count;
+    return;
+  }
+  const std::uint32_t id = find_or_create(sums.key);
+  if (id == CellIndex::kAbsent) {
+    counters_.points_dropped_full += sums.point_count;
+    return;
+  }
+  VoxelSums& voxel = table_[id];
+  voxel.point_count += sums.point_count;
+  for (std::size_t i = 0; i < 3; ++i) {
+    voxel.sum_m[i] += sums.sum_m[i];
+  }
+  for (std::size_t i = 0; i < 6; ++i) {
+    voxel.sum_outer_m2[i] += sums.sum_outer_m2[i];
+  }
+  counters_.points_added += sums.point_count;
+  last_index_ = CellIndex::kAbsent;
 }
 
 void VoxelGrid::remove_point(const Eigen::Vector3f& point_m) noexcept {

@@ -127,7 +127,7 @@ TEST(PlaneStream, DamagedRecordsNameWhatIsWrongAndDeliverNothing) {
     EXPECT_TRUE(changes.empty());
   };
   std::vector<std::uint8_t> bytes = good;
-  bytes[second] = 4;  // change code
+  bytes[second] = 5;  // change code
   expect_refused(bytes, ParseError::kBadChange);
   bytes = good;
   bytes[second + 1] = 7;  // kind

@@ -149,6 +149,53 @@ TEST_F(ReplayCommand, WithoutOutWritesTheTrajectoryToStdout) {
   EXPECT_NE(result.err.find("origin "), std::string::npos) << result.err;
 }
 
+// Mapping replays: 25 s of usc_block, the east side of the building ahead.
+class ReplayMapping : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    folder_ = fs::temp_directory_path() / ("blockmap_replay_map_" + std::to_string(::getpid()));
+    const Result result = run_cli({"simulate", "--world", "usc_block", "--seed", "2",
+                                   "--duration-s", "25", "--out", folder_.string()});
+    ASSERT_EQ(result.status, kExitOk) << result.err;
+  }
+  static void TearDownTestSuite() { fs::remove_all(folder_); }
+
+  static inline fs::path folder_;
+};
+
+TEST_F(ReplayMapping, MapsThePlanesWhenTheLogsHaveLasers) {
+  const fs::path out = folder_.string() + "_planes";
+  const Result result =
+      run_cli({"replay", folder_.string(), "--out", out.string(), "--particles", "500"});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  EXPECT_NE(result.err.find("scans projected"), std::string::npos) << result.err;
+  const nlohmann::json list = nlohmann::json::parse(read_file(out / "planes.json"));
+  EXPECT_FALSE(list["planes"].empty());
+  EXPECT_GT(list["points"].get<double>(), 50000.0);
+  for (const char* name : {"planes.jsonl", "planes.bin", "map.wrl", "trajectory.csv"}) {
+    EXPECT_TRUE(fs::exists(out / name)) << name;
+  }
+  fs::remove_all(out);
+}
+
+TEST_F(ReplayMapping, ADamagedLaserLogIsMappedUpToTheDamageAndReported) {
+  const fs::path logs = folder_.string() + "_damaged";
+  fs::remove_all(logs);
+  fs::copy(folder_, logs);
+  // Cut the horizontal laser's log in the middle of a record.
+  const fs::path laser = logs / "laser_horizontal.bytelog";
+  fs::resize_file(laser, fs::file_size(laser) / 2 + 7);
+  const fs::path out = logs.string() + "_out";
+  const Result result =
+      run_cli({"replay", logs.string(), "--out", out.string(), "--particles", "500"});
+  EXPECT_EQ(result.status, kExitFailure);
+  EXPECT_NE(result.err.find("laser_horizontal.bytelog is damaged at byte"), std::string::npos)
+      << result.err;
+  EXPECT_TRUE(fs::exists(out / "planes.json")) << "what came before the damage is mapped";
+  fs::remove_all(logs);
+  fs::remove_all(out);
+}
+
 TEST(ReplayCommandInput, BadInputGetsOneClearLine) {
   const fs::path folder =
       fs::temp_directory_path() / ("blockmap_replay_bad_" + std::to_string(::getpid()));

@@ -53,7 +53,7 @@ TEST(PlaneJson, AnUpdateIsOneLineWithEachChangeInItsList) {
 
 TEST(PlaneJson, AnUpdateWithNothingInItStillHasEveryKey) {
   const nlohmann::json update = plane_update_json(0, {});
-  for (const char* key : {"t_s", "added", "changed", "finalized"}) {
+  for (const char* key : {"t_s", "added", "changed", "finalized", "removed"}) {
     EXPECT_TRUE(update.contains(key)) << key;
   }
 }

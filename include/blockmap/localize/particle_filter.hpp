@@ -109,6 +109,8 @@ class ParticleFilter {
   [[nodiscard]] const LocalizeCounters& counters() const noexcept { return counters_; }
   [[nodiscard]] std::size_t particle_count() const noexcept { return count_; }
   [[nodiscard]] std::size_t history_size() const noexcept { return history_size_; }
+  // The time of the newest odometry: pose_at() answers up to it.
+  [[nodiscard]] TimestampNs last_stamp_ns() const noexcept { return last_stamp_ns_; }
   // The stamp of the newest history step (0 before the first).
   [[nodiscard]] TimestampNs newest_step_ns() const noexcept {
     return history_size_ == 0 ? 0 : history_stamps_[history_newest_];
@@ -209,6 +211,13 @@ class ParticleFilter {
   std::span<double> trace_weight_;         // their descendants' summed weights
   std::span<std::uint32_t> lineage_slot_;  // per entry index: its place in trace_
   std::span<std::uint32_t> lineage_seen_;  // per entry index: the generation that placed it
+  // pose_at() after the newest history step: its two ends, valid while version_ holds.
+  [[nodiscard]] static Pose2 interpolate(const Pose2& earlier, const Pose2& later,
+                                         TimestampNs stamp_ns) noexcept;
+  std::uint64_t version_ = 0;  // counts predict() and update() calls
+  mutable std::uint64_t newest_span_version_ = ~std::uint64_t{0};
+  mutable Pose2 newest_span_earlier_;
+  mutable Pose2 newest_span_later_;
   mutable std::size_t lineage_count_ = 0;
   mutable std::uint32_t lineage_generation_ = 0;
   std::span<Pose2> final_;  // finalized poses waiting to be drained (a ring)

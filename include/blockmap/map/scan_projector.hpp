@@ -66,6 +66,10 @@ class ScanProjector {
   std::size_t project(const msg::LaserScan& scan, const localize::Pose3& first,
                       const localize::Pose3& last, std::span<Eigen::Vector3f> out) noexcept;
 
+  // The laser's scan plane in the local frame at `pose`: its origin and unit normal.
+  void scan_plane(const localize::Pose3& pose, Eigen::Vector3d& origin_m,
+                  Eigen::Vector3d& normal) const noexcept;
+
   [[nodiscard]] const ProjectionCounters& counters() const noexcept { return counters_; }
   // What this object holds (the beam directions table lives inside it).
   [[nodiscard]] static constexpr std::size_t memory_bytes() noexcept {

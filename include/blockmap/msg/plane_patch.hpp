@@ -40,4 +40,20 @@ struct PlanePatch {
   std::uint8_t polygon_size = 0;
 };
 
+// What happened to a plane of the mapper's list, as its stream reports it (a consumer applies
+// the changes by id): new, updated while its region is still mapped, final (its region left
+// the mapper's window; it will not change again), or removed (merged into another plane, or
+// no longer seen in what the window holds: a consumer drops it; its id never comes back).
+enum class PlaneChangeKind : std::uint8_t {
+  kAdded = 1,
+  kChanged = 2,
+  kFinalized = 3,
+  kRemoved = 4
+};
+
+struct PlaneChange {
+  PlaneChangeKind change = PlaneChangeKind::kAdded;
+  PlanePatch plane;
+};
+
 }  // namespace blockmap::msg

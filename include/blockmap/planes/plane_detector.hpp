@@ -38,6 +38,7 @@ struct DetectionStats {
   std::uint64_t peaks = 0;
   std::uint64_t section_planes = 0;
   std::uint64_t planes = 0;
+  std::uint64_t planes_excluded = 0;  // known not to be surfaces (set_exclusions)
 };
 
 class PlaneDetector {
@@ -52,11 +53,22 @@ class PlaneDetector {
   void clear() noexcept;
   void add_point(const Eigen::Vector3f& point_m) noexcept { voxels_.add_point(point_m); }
   void add_points(std::span<const Eigen::Vector3f> points_m) noexcept;
+  // A voxel's sums gathered elsewhere (the mapper's window), in the voxel grid's layout.
+  void add_sample(const VoxelSums& sample) noexcept { voxels_.add_sums(sample); }
+
+  // Planes known not to be surfaces (a laser's scan plane), dropped by the next detect()s.
+  void set_exclusions(std::span<const PlaneExclusion> exclusions) noexcept {
+    merger_.set_exclusions(exclusions);
+  }
 
   // The planes of every point added since clear(), largest first. The span stays valid
   // until the next detect() or clear().
   std::span<const msg::PlanePatch> detect() noexcept;
 
+  // The moments (frame origin) of the points behind each plane of the last detect().
+  [[nodiscard]] std::span<const PointMoments> plane_moments() const noexcept {
+    return merger_.plane_moments();
+  }
   [[nodiscard]] const DetectionStats& stats() const noexcept { return stats_; }
   [[nodiscard]] const PlanesConfig& config() const noexcept { return config_; }
   [[nodiscard]] const VoxelGrid& voxels() const noexcept { return voxels_; }

@@ -33,12 +33,27 @@ struct SectionPlane {
   std::array<Eigen::Vector3f, 4> corners_m{};
 };
 
+// A plane known not to be a surface: a laser's own scan plane. A laser sweeping foliage or
+// clutter from a robot that drives within its scan plane lays its returns on that plane scan
+// after scan, and they look flat, however far from the laser they are. A merged plane within
+// acos(cos_max_angle) of `normal` that passes within distance_m of one of the laser's
+// positions `origins_m` (where it has been lately) is that plane: it is dropped before the
+// planes are labelled.
+struct PlaneExclusion {
+  std::span<const Eigen::Vector3d> origins_m;
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+  double cos_max_angle = 1.0;
+  double distance_m = 0.0;
+};
+
 class PlaneMerger {
  public:
+  static constexpr std::size_t kMaxExclusions = 8;
   struct Counters {
     std::uint64_t section_planes_dropped_full = 0;
     std::uint64_t planes_dropped_full = 0;
     std::uint64_t stage2_merges = 0;
+    std::uint64_t planes_excluded = 0;
   };
 
   void init(Arena& arena, const PlanesConfig& config);
@@ -47,9 +62,16 @@ class PlaneMerger {
   // Section planes must come in section key order (the detector's order). False when full.
   bool add(const SectionPlane& plane) noexcept;
 
+  // The exclusions of the next merge() (at most kMaxExclusions; kept until replaced).
+  void set_exclusions(std::span<const PlaneExclusion> exclusions) noexcept;
+
   // Merges, labels and numbers the planes (largest first).
   std::span<const msg::PlanePatch> merge(const SectionGrid& sections) noexcept;
 
+  // The moments of the points behind each plane of the last merge(), in its order.
+  [[nodiscard]] std::span<const PointMoments> plane_moments() const noexcept {
+    return output_moments_.first(output_count_);
+  }
   [[nodiscard]] std::size_t section_plane_count() const noexcept { return plane_count_; }
   [[nodiscard]] const Counters& counters() const noexcept { return counters_; }
   [[nodiscard]] std::size_t memory_bytes() const noexcept;
@@ -75,9 +97,13 @@ class PlaneMerger {
   [[nodiscard]] bool within_noise_slab(const Candidate& big, const Candidate& small) const noexcept;
   void absorb(Candidate& big, const Candidate& small) noexcept;
   std::size_t merge_candidates() noexcept;
+  [[nodiscard]] bool excluded(const Candidate& candidate) const noexcept;
+  void drop_excluded() noexcept;
   void label_and_emit() noexcept;
 
   PlanesConfig config_;
+  std::array<PlaneExclusion, kMaxExclusions> exclusions_{};
+  std::size_t exclusion_count_ = 0;
   std::span<SectionPlane> planes_;
   std::size_t plane_count_ = 0;
   std::span<std::uint32_t> parent_;
@@ -89,6 +115,7 @@ class PlaneMerger {
   std::span<Eigen::Vector2d> scratch_hull_;
   std::span<Eigen::Vector2d> scratch_other_;
   std::span<msg::PlanePatch> output_;
+  std::span<PointMoments> output_moments_;
   std::size_t output_count_ = 0;
   Counters counters_;
 };

@@ -88,10 +88,18 @@ struct PlanesConfig {
 
   // Capacities, all taken at init.
   std::size_t max_samples = 1u << 20;
+  // Occupied blocks of 4 x 4 x 4 samples; 0: as many as samples (always enough). A city scan
+  // fills a block with 3-8 samples on average, so a memory-bound mapper sets it to a half.
+  std::size_t max_blocks = 0;
   std::size_t max_samples_per_section = 4096;
   std::size_t max_patches = 1u << 16;
   std::size_t max_planes = 4096;
 };
+
+// The block capacity: max_blocks, or max_samples when 0.
+[[nodiscard]] constexpr std::size_t block_capacity(const PlanesConfig& config) noexcept {
+  return config.max_blocks == 0 ? config.max_samples : config.max_blocks;
+}
 
 // Empty when the configuration is usable, otherwise what is wrong with it.
 [[nodiscard]] std::string validate(const PlanesConfig& config);

@@ -168,12 +168,16 @@ class VoxelGrid {
     std::uint32_t count = 0;
   };
 
-  void init(Arena& arena, double voxel_size_m, std::size_t max_voxels);
+  // max_blocks: occupied 4 x 4 x 4 blocks (0: as many as voxels, which always suffices); a
+  // point whose voxel would need a block beyond it is dropped (points_dropped_full).
+  void init(Arena& arena, double voxel_size_m, std::size_t max_voxels, std::size_t max_blocks = 0);
   void clear() noexcept;
 
   void add_point(const Eigen::Vector3f& point_m) noexcept;
   // Takes a point added before back out (its voxel stays, possibly empty).
   void remove_point(const Eigen::Vector3f& point_m) noexcept;
+  // Adds a voxel's sums gathered elsewhere (same voxel size, sums about the voxel's centre).
+  void add_sums(const VoxelSums& sums) noexcept;
   // Adds many points, fetching the slots of points a few ahead while it works on this one.
   void add_points(std::span<const Eigen::Vector3f> points_m) noexcept;
 
@@ -207,7 +211,12 @@ class VoxelGrid {
   [[nodiscard]] Eigen::Vector3f centroid_m(const VoxelSums& voxel) const noexcept;
   // A voxel's moments in double, relative to `origin_m`.
   [[nodiscard]] PointMoments moments(const VoxelSums& voxel,
-                                     const Eigen::Vector3d& origin_m) const noexcept;
+                                     const Eigen::Vector3d& origin_m) const noexcept {
+    return moments_of(voxel, voxel_size_m_, origin_m);
+  }
+  // The same for sums kept elsewhere in this layout (the mapper's window).
+  [[nodiscard]] static PointMoments moments_of(const VoxelSums& voxel, double voxel_size_m,
+                                               const Eigen::Vector3d& origin_m) noexcept;
   [[nodiscard]] const Counters& counters() const noexcept { return counters_; }
   [[nodiscard]] std::size_t memory_bytes() const noexcept {
     return table_.size_bytes() + voxels_.size_bytes() + block_index_.memory_bytes() +
@@ -216,7 +225,8 @@ class VoxelGrid {
            block_sums_.size_bytes() + block_summed_.size_bytes();
   }
   // Bytes init() takes from the arena for `max_voxels`.
-  [[nodiscard]] static std::size_t arena_bytes(std::size_t max_voxels) noexcept;
+  [[nodiscard]] static std::size_t arena_bytes(std::size_t max_voxels,
+                                               std::size_t max_blocks = 0) noexcept;
   // How many voxels of `voxel_size_m` the finite points fall in: a batch tool sizes the grid
   // by it before init. `scratch` must hold one key per point (it is sorted in place).
   [[nodiscard]] static std::size_t count_voxels(std::span<const Eigen::Vector3f> points_m,
@@ -244,7 +254,8 @@ class VoxelGrid {
   [[nodiscard]] std::size_t home_slot(CellKey key) const noexcept {
     return block_local_home_slot(key, shift_, mask_);
   }
-  void mark_in_block(std::int64_t x, std::int64_t y, std::int64_t z) noexcept;
+  // Marks the cell in its block, creating the block; false when that needs one too many.
+  bool mark_in_block(std::int64_t x, std::int64_t y, std::int64_t z) noexcept;
   // The live masks and first sample ids of the 27 blocks around one block (index
   // (dx + 1) * 9 + (dy + 1) * 3 + dz + 1): a neighbour's id is a bit count away.
   struct BlockNeighbourhood {

@@ -10,12 +10,14 @@
 
 namespace blockmap::hal::config {
 
-// A document whose [planes] table (when present) overrides the defaults. Other top-level
-// tables are left to their own readers.
+// A document whose [planes] table (when present) overrides `base` (the defaults, or the
+// mapper's window_planes_config()). Other top-level tables are left to their own readers.
 [[nodiscard]] planes::PlanesConfig parse_planes_config(std::string_view text,
-                                                       std::string_view source);
+                                                       std::string_view source,
+                                                       const planes::PlanesConfig& base = {});
 
 // The same, from a file.
-[[nodiscard]] planes::PlanesConfig load_planes_config(const std::filesystem::path& path);
+[[nodiscard]] planes::PlanesConfig load_planes_config(const std::filesystem::path& path,
+                                                      const planes::PlanesConfig& base = {});
 
 }  // namespace blockmap::hal::config

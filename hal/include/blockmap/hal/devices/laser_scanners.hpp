@@ -21,8 +21,11 @@ namespace blockmap::hal::devices {
 // What every scanner device counts and how it publishes.
 class ScanPublisher {
  public:
-  ScanPublisher(SpscQueueRef<msg::LaserScan>& scans, TimestampNs latency_ns)
-      : scans_(scans), latency_ns_(latency_ns) {}
+  // beam_interval_s: the time between two beams, stamped on scans whose telegrams do not say
+  // (0: leave it unknown).
+  ScanPublisher(SpscQueueRef<msg::LaserScan>& scans, TimestampNs latency_ns,
+                double beam_interval_s = 0.0)
+      : scans_(scans), latency_ns_(latency_ns), beam_interval_s_(beam_interval_s) {}
 
   [[nodiscard]] std::uint64_t scans_published() const noexcept { return published_.value(); }
   // Scans the queue had no room for (the pipeline fell behind).
@@ -34,6 +37,7 @@ class ScanPublisher {
  private:
   SpscQueueRef<msg::LaserScan>& scans_;
   TimestampNs latency_ns_;
+  double beam_interval_s_;
   msg::LaserScan stamped_;
   MonotonicCounter published_;
   MonotonicCounter rejected_;
@@ -43,7 +47,17 @@ struct Lms2xxScannerConfig {
   protocol::sick_lms2xx::Config codec;
   // Back-dating of each scan: the telegram's transfer starts after the sweep it reports.
   TimestampNs latency_ns = 0;
+  // The time between two beams (the B0 telegram does not carry it); 0: unknown.
+  double beam_interval_s = 0.0;
 };
+
+// An LMS2xx's timing when one mirror turn makes a scan (the 1 deg variants; PROTOCOLS.md 2):
+// the mirror turns at 75 Hz, so beams are resolution / 360 of a turn apart, and the field is
+// centred on the half turn facing forward (a 100 deg field starts 40 deg into it). The
+// telegram's first byte leaves about processing_s after that half turn; the stamp moves back
+// to the first beam.
+[[nodiscard]] Lms2xxScannerConfig lms2xx_single_turn_timing(double field_deg, double resolution_deg,
+                                                            double processing_s = 0.001);
 
 // SICK LMS 200/291 on a serial line (PROTOCOLS.md 2.5: continuous output after 20 24).
 class Lms2xxScanner : public ScanPublisher {

@@ -38,12 +38,9 @@ inline constexpr std::size_t kVertexBytes = 12;
 inline constexpr std::size_t kMaxEntryBytes =
     kEntryFixedBytes + msg::kMaxPolygonVertices * kVertexBytes;
 
-enum class Change : std::uint8_t { kAdded = 1, kChanged = 2, kFinalized = 3 };
-
-struct PlaneChange {
-  Change change = Change::kAdded;
-  msg::PlanePatch plane;
-};
+// The mapper's plane changes (msg/plane_patch.hpp); the byte values are the format's.
+using Change = msg::PlaneChangeKind;
+using PlaneChange = msg::PlaneChange;
 
 // The bytes one update takes.
 [[nodiscard]] std::size_t record_size(std::span<const PlaneChange> changes) noexcept;

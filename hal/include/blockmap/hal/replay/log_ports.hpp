@@ -7,9 +7,11 @@
 #include <cstdint>
 #include <cstdio>
 #include <string>
+#include <vector>
 
 #include "blockmap/hal/byte_stream.hpp"
 #include "blockmap/hal/can_bus.hpp"
+#include "blockmap/hal/protocol/byte_log.hpp"
 
 namespace blockmap::hal::replay {
 
@@ -76,6 +78,40 @@ class FileByteStream final : public ByteStream {
 
  private:
   LogFile file_;
+};
+
+// A timestamped byte log (docs/log-formats.md: a laser's telegrams as the host read them) as a
+// ByteStream: each read returns the device's bytes of the next record (or as much as the
+// caller's buffer holds) stamped with the record's receive time; the host's own writes are
+// skipped. A damaged record ends the stream (kIoError) and is reported by damage(): the
+// records before it are all delivered. One record is in memory at a time.
+class ByteLogFileStream final : public ByteStream {
+ public:
+  explicit ByteLogFileStream(const std::string& path);
+  [[nodiscard]] bool ok() const noexcept { return error_.empty(); }
+  [[nodiscard]] const std::string& error() const noexcept { return error_; }
+  // kNone, or why the log ended early, and where (bytes from the start of the file).
+  [[nodiscard]] protocol::byte_log::ParseError damage() const noexcept { return damage_; }
+  [[nodiscard]] std::uint64_t damage_offset() const noexcept { return damage_offset_; }
+
+ protected:
+  ReadResult do_read(std::span<std::uint8_t> buffer, TimestampNs timeout_ns) override;
+  WriteResult do_write(std::span<const std::uint8_t> bytes, TimestampNs timeout_ns) override;
+
+ private:
+  // Loads the next device record; false at the end or on damage.
+  bool load_next();
+
+  LogFile file_;
+  std::string error_;
+  std::vector<std::uint8_t> record_;  // header and bytes of the current record
+  std::size_t consumed_ = 0;          // of its bytes, already handed out
+  std::size_t length_ = 0;
+  TimestampNs stamp_ns_ = 0;
+  std::uint64_t offset_ = 0;  // of the next record in the file
+  bool ended_ = false;
+  protocol::byte_log::ParseError damage_ = protocol::byte_log::ParseError::kNone;
+  std::uint64_t damage_offset_ = 0;
 };
 
 }  // namespace blockmap::hal::replay

@@ -1,0 +1,125 @@
+#include "commands/mapping.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <ostream>
+
+#include "blockmap/hal/config/planes_config.hpp"
+#include "blockmap/hal/sim/simulated_robot.hpp"
+
+namespace blockmap::cli {
+namespace {
+
+constexpr double kMiB = 1024.0 * 1024.0;
+
+}  // namespace
+
+pipeline::MapperConfig mapper_config_for(const hal::sim::RobotSpec& robot,
+                                         const MappingOptions& options) {
+  pipeline::MapperConfig config = hal::sim::mapper_config_for(robot);
+  if (!options.config.empty()) {
+    config.planes = hal::config::load_planes_config(options.config, config.planes);
+  }
+  config.window.voxel_size_m = config.planes.sample_size_m;
+  return config;
+}
+
+std::string MappingSession::start(const pipeline::MapperConfig& config,
+                                  const MappingOptions& options, std::ostream& out,
+                                  std::ostream& err) {
+  if (std::string problem = pipeline::validate(config); !problem.empty()) {
+    return problem;
+  }
+  const std::size_t needed = pipeline::Mapper::arena_bytes(config);
+  const auto budget = static_cast<std::size_t>(options.budget_mib * kMiB);
+  if (needed > budget) {
+    char text[160];
+    std::snprintf(text, sizeof text,
+                  "the configured capacities need %.1f MiB, over the %.1f MiB budget "
+                  "(--budget-mib, or smaller capacities)",
+                  static_cast<double>(needed) / kMiB, options.budget_mib);
+    return text;
+  }
+  arena_ = std::make_unique<Arena>(needed);
+  mapper_.init(*arena_, config);
+  arena_->seal();
+  // The memory report: every owner's bytes, against the budget.
+  char line[200];
+  std::snprintf(line, sizeof line, "memory: %.1f MiB of the %.1f MiB budget, taken at start-up:",
+                static_cast<double>(arena_->used_bytes()) / kMiB, options.budget_mib);
+  err << line;
+  for (const Arena::OwnerBytes& owner : arena_->owners()) {
+    std::snprintf(line, sizeof line, " %s %.2f,", owner.owner,
+                  static_cast<double>(owner.bytes) / kMiB);
+    err << line;
+  }
+  err << " MiB\n";
+  poses_.resize(config.localizer.filter.history_steps + 1);
+  if (options.out.empty()) {
+    outputs_.open_trajectory_only(out);
+    return {};
+  }
+  if (options.trajectory_only) {
+    return outputs_.open_trajectory_only(options.out);
+  }
+  return outputs_.open(options.out, mapper_.registry().change_capacity(), options.udp);
+}
+
+void MappingSession::pump() {
+  while (mapper_.step()) {
+    const pipeline::PlaneUpdate update = mapper_.update();
+    outputs_.write_update(update.stamp_ns, update.changes);
+  }
+  outputs_.write_poses(
+      std::span<const localize::Pose3>(poses_.data(), mapper_.drain_final_poses(poses_)));
+}
+
+std::string MappingSession::finish(double seconds) {
+  mapper_.end_of_input();
+  pump();
+  outputs_.write_poses(
+      std::span<const localize::Pose3>(poses_.data(), mapper_.smoothed_poses(poses_)));
+  return outputs_.finish(mapper_.final_planes(), mapper_.counters().points, seconds);
+}
+
+void MappingSession::report(std::ostream& err, double wall_s, double data_s) const {
+  const pipeline::MapperCounters& c = mapper_.counters();
+  const map::VoxelWindowCounters& w = mapper_.window().counters();
+  const map::PlaneRegistryCounters& r = mapper_.registry().counters();
+  char text[640];
+  std::snprintf(
+      text, sizeof text,
+      "mapped %.1f s of data in %.2f s (%.0fx real time): %llu scans projected, %llu points "
+      "(%llu outside the window, %llu with no room); %llu extractions; planes: %llu added, %llu "
+      "changes, %llu final; window peak %zu samples of %zu; %llu updates, %llu bytes of binary "
+      "stream -> %s\n",
+      data_s, wall_s, wall_s > 0.0 ? data_s / wall_s : 0.0,
+      static_cast<unsigned long long>(c.scans_projected), static_cast<unsigned long long>(c.points),
+      static_cast<unsigned long long>(w.points_outside),
+      static_cast<unsigned long long>(w.points_dropped_full),
+      static_cast<unsigned long long>(c.extractions), static_cast<unsigned long long>(r.added),
+      static_cast<unsigned long long>(r.changed),
+      static_cast<unsigned long long>(mapper_.final_planes().size()), w.peak_samples,
+      mapper_.window().capacity(), static_cast<unsigned long long>(outputs_.updates()),
+      static_cast<unsigned long long>(outputs_.binary_bytes()), outputs_.dir().c_str());
+  err << text;
+  const std::uint64_t lost = c.scans_refused_full + c.scans_without_pose + c.messages_late +
+                             c.reorder_forced + r.refused_full + r.finalized_early +
+                             r.final_dropped;
+  if (lost > 0) {
+    std::snprintf(text, sizeof text,
+                  "mapper: %llu scans refused (queue full), %llu without a pose, %llu late "
+                  "messages, %llu forced out of the reorder buffer; registry: %llu refused, %llu "
+                  "finalized early, %llu final planes dropped (capacity)\n",
+                  static_cast<unsigned long long>(c.scans_refused_full),
+                  static_cast<unsigned long long>(c.scans_without_pose),
+                  static_cast<unsigned long long>(c.messages_late),
+                  static_cast<unsigned long long>(c.reorder_forced),
+                  static_cast<unsigned long long>(r.refused_full),
+                  static_cast<unsigned long long>(r.finalized_early),
+                  static_cast<unsigned long long>(r.final_dropped));
+    err << text;
+  }
+}
+
+}  // namespace blockmap::cli

@@ -1,0 +1,161 @@
+// `blockmap run [--config FILE] [--out DIR]`: the onboard mapper. With no robot attached (this
+// build has no device configuration yet), it maps the built-in simulated city block: the
+// simulated Segway, lasers and GPS put their real bytes on loopback ports, the same device
+// layer as on the robot decodes them, and the pipeline (particle filter, scan projection,
+// sliding voxel window, Hough planes, plane registry) maps as it goes, writing the plane
+// stream, the trajectory and, at the end, the plane list and a VRML map (ARCHITECTURE.md 4.4).
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <memory>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include "blockmap/hal/cloud/point_cloud_file.hpp"
+#include "blockmap/hal/config/config_error.hpp"
+#include "blockmap/hal/sim/simulated_robot.hpp"
+#include "blockmap/hal/sim/world.hpp"
+#include "cli.hpp"
+#include "commands/commands.hpp"
+#include "commands/mapping.hpp"
+
+namespace blockmap::cli {
+namespace {
+
+struct RunOptions {
+  MappingOptions mapping;
+  std::string world = "usc_block";
+  std::string robot = "paper_rmp";
+  std::uint64_t seed = 1;
+  double duration_s = 0.0;
+  std::string poses = "filter";
+  int laps = 1;
+  bool cloud = false;
+};
+
+// Every projected point, for cloud.ply.
+class CloudRecorder final : public pipeline::PointSink {
+ public:
+  void on_points(std::span<const Eigen::Vector3f> points_m) override {
+    points_.insert(points_.end(), points_m.begin(), points_m.end());
+  }
+  [[nodiscard]] const std::vector<Eigen::Vector3f>& points() const noexcept { return points_; }
+
+ private:
+  std::vector<Eigen::Vector3f> points_;
+};
+
+int run(const RunOptions& options, std::ostream& err) {
+  hal::sim::World world = hal::sim::load_world(options.world);
+  if (options.laps > 1) {
+    // More laps of a loop: the path again from its first waypoint (a long-run test of
+    // bounded memory).
+    std::vector<hal::sim::Vec2>& waypoints = world.path.waypoints_m;
+    if ((waypoints.front() - waypoints.back()).norm() > 1e-9) {
+      err << "blockmap: run: --laps needs a world whose path is a loop\n";
+      return kExitUsage;
+    }
+    const std::vector<hal::sim::Vec2> lap(waypoints.begin() + 1, waypoints.end());
+    for (int i = 1; i < options.laps; ++i) {
+      waypoints.insert(waypoints.end(), lap.begin(), lap.end());
+    }
+  }
+  const hal::sim::RobotSpec robot = hal::sim::load_robot(options.robot);
+  if (options.poses != "filter" && options.poses != "truth") {
+    err << "blockmap: run: --poses is filter or truth\n";
+    return kExitUsage;
+  }
+  pipeline::MapperConfig config = mapper_config_for(robot, options.mapping);
+  const bool true_poses = options.poses == "truth";
+  config.pose_source =
+      true_poses ? pipeline::PoseSource::kExternal : pipeline::PoseSource::kLocalizer;
+  hal::sim::SimOptions sim_options;
+  sim_options.seed = options.seed;
+  sim_options.max_duration_s = options.duration_s;
+  auto simulated = std::make_unique<hal::sim::SimulatedRobot>(world, robot, sim_options);
+  if (simulated->start() != IoStatus::kOk) {
+    err << "blockmap: run: the simulated lasers did not start\n";
+    return kExitFailure;
+  }
+  auto session = std::make_unique<MappingSession>();
+  if (const std::string problem = session->start(config, options.mapping, err, err);
+      !problem.empty()) {
+    err << "blockmap: run: " << problem << '\n';
+    return kExitUsage;
+  }
+  CloudRecorder cloud;
+  if (options.cloud) {
+    session->mapper().set_point_sink(&cloud);
+  }
+  const auto wall_start = std::chrono::steady_clock::now();
+  bool more = true;
+  while (more) {
+    more = simulated->advance();
+    simulated->feed(session->mapper(), true_poses);
+    session->pump();
+  }
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  if (const std::string problem = session->finish(wall_s); !problem.empty()) {
+    err << "blockmap: run: " << problem << '\n';
+    return kExitFailure;
+  }
+  if (options.cloud) {
+    hal::cloud::write_ply(std::filesystem::path(options.mapping.out) / "cloud.ply", cloud.points());
+  }
+  session->report(err, wall_s, simulated->simulation().elapsed_s());
+  err << "run: open " << (std::filesystem::path(options.mapping.out) / "map.wrl").string()
+      << " in a VRML viewer (view3dscene, MeshLab), or read planes.json\n";
+  return kExitOk;
+}
+
+}  // namespace
+
+Command add_run_command(CLI::App& app) {
+  CLI::App* command = app.add_subcommand(
+      "run",
+      "The onboard mapper; with no robot attached, on the built-in simulated city block "
+      "(usc_block): writes planes.jsonl, planes.bin, trajectory.csv, planes.json, map.wrl");
+  auto options = std::make_shared<RunOptions>();
+  options->mapping.out = "out/run";
+  command->add_option("--config", options->mapping.config,
+                      "a TOML file whose [planes] table sets the detector (config/planes.toml)");
+  command->add_option("--out", options->mapping.out, "the folder to write into")
+      ->capture_default_str();
+  command->add_option("--world", options->world, "the simulated world (built-in name or .toml)")
+      ->capture_default_str();
+  command->add_option("--robot", options->robot, "the simulated robot (built-in name or .toml)")
+      ->capture_default_str();
+  command->add_option("--seed", options->seed, "the simulation's seed")->capture_default_str();
+  command
+      ->add_option("--duration-s", options->duration_s,
+                   "stop after this much simulated time (0: the whole path)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  command
+      ->add_option("--poses", options->poses,
+                   "filter: the particle filter's poses (as on the robot); truth: the "
+                   "simulation's true poses")
+      ->capture_default_str();
+  command->add_option("--udp", options->mapping.udp,
+                      "also send each binary plane-stream record to HOST:PORT");
+  command
+      ->add_option("--budget-mib", options->mapping.budget_mib,
+                   "the memory budget the configured capacities must fit in")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  command->add_flag("--cloud", options->cloud, "also write cloud.ply, every projected point");
+  command->add_option("--laps", options->laps, "drive a loop path this many times")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  return {command, [options](std::ostream& /*out*/, std::ostream& err) {
+            try {
+              return run(*options, err);
+            } catch (const hal::ConfigError& error) {
+              err << "blockmap: run: " << error.what() << '\n';
+              return kExitUsage;
+            }
+          }};
+}
+
+}  // namespace blockmap::cli

@@ -1,0 +1,126 @@
+#include "outputs/map_outputs.hpp"
+
+#include <algorithm>
+#include <cstdio>
+
+#include <nlohmann/json.hpp>
+
+#include "blockmap/hal/protocol/plane_stream.hpp"
+#include "outputs/plane_json.hpp"
+#include "outputs/vrml.hpp"
+
+namespace blockmap::cli {
+namespace {
+
+namespace fs = std::filesystem;
+namespace stream = hal::protocol::plane_stream;
+
+constexpr std::size_t kPathDecimation = 10;
+constexpr const char* kTrajectoryHeader = "t_s,x_m,y_m,z_m,roll_rad,pitch_rad,yaw_rad\n";
+
+}  // namespace
+
+std::string MapOutputs::open(const fs::path& dir, std::size_t max_changes,
+                             const std::string& udp_destination) {
+  dir_ = dir;
+  std::error_code error;
+  fs::create_directories(dir, error);
+  if (error) {
+    return "cannot create " + dir.string() + ": " + error.message();
+  }
+  const auto open_file = [&](std::ofstream& file, const char* name, std::ios::openmode mode) {
+    file.open(dir / name, mode);
+    return static_cast<bool>(file);
+  };
+  if (!open_file(jsonl_, "planes.jsonl", std::ios::out) ||
+      !open_file(binary_, "planes.bin", std::ios::out | std::ios::binary) ||
+      !open_file(trajectory_, "trajectory.csv", std::ios::out)) {
+    return "cannot write into " + dir.string();
+  }
+  binary_.write(reinterpret_cast<const char*>(stream::kMagic.data()), stream::kMagic.size());
+  binary_bytes_ = stream::kMagic.size();
+  trajectory_out_ = &trajectory_;
+  files_ = true;
+  *trajectory_out_ << kTrajectoryHeader;
+  record_.resize(stream::kRecordHeaderBytes + max_changes * stream::kMaxEntryBytes);
+  if (!udp_destination.empty()) {
+    return udp_.open(udp_destination);
+  }
+  return {};
+}
+
+void MapOutputs::open_trajectory_only(std::ostream& trajectory) {
+  trajectory_out_ = &trajectory;
+  *trajectory_out_ << kTrajectoryHeader;
+}
+
+std::string MapOutputs::open_trajectory_only(const fs::path& dir) {
+  dir_ = dir;
+  std::error_code error;
+  fs::create_directories(dir, error);
+  trajectory_.open(dir / "trajectory.csv");
+  if (error || !trajectory_) {
+    return "cannot write " + (dir / "trajectory.csv").string();
+  }
+  open_trajectory_only(trajectory_);
+  return {};
+}
+
+void MapOutputs::write_update(TimestampNs stamp_ns, std::span<const msg::PlaneChange> changes) {
+  if (changes.empty() || !files_) {
+    return;
+  }
+  ++updates_;
+  jsonl_ << plane_update_json(stamp_ns, changes).dump() << '\n';
+  const std::size_t bytes = stream::encode_update(stamp_ns, changes, record_);
+  binary_.write(reinterpret_cast<const char*>(record_.data()), static_cast<std::streamsize>(bytes));
+  binary_bytes_ += bytes;
+  if (udp_.is_open()) {
+    static_cast<void>(udp_.send(std::span<const std::uint8_t>(record_.data(), bytes)));
+  }
+}
+
+void MapOutputs::write_poses(std::span<const localize::Pose3> poses) {
+  for (const localize::Pose3& p : poses) {
+    char line[160];
+    const int n = std::snprintf(line, sizeof line, "%.6f,%.4f,%.4f,%.4f,%.6f,%.6f,%.6f\n",
+                                seconds_from_ns(p.stamp_ns), p.x_m, p.y_m, p.z_m, p.roll_rad,
+                                p.pitch_rad, p.yaw_rad);
+    trajectory_out_->write(line, n);
+    if (trajectory_rows_ % kPathDecimation == 0) {
+      path_.push_back(p);
+    }
+    ++trajectory_rows_;
+  }
+}
+
+std::string MapOutputs::finish(std::span<const msg::PlanePatch> planes, std::uint64_t points,
+                               double seconds) {
+  if (!files_) {
+    trajectory_out_->flush();
+    return *trajectory_out_ ? std::string() : std::string("writing the trajectory failed");
+  }
+  // The final list by id: the order in which the planes were first seen.
+  std::vector<msg::PlanePatch> sorted(planes.begin(), planes.end());
+  std::sort(sorted.begin(), sorted.end(),
+            [](const msg::PlanePatch& a, const msg::PlanePatch& b) { return a.id < b.id; });
+  nlohmann::json list = nlohmann::json::array();
+  for (const msg::PlanePatch& plane : sorted) {
+    list.push_back(plane_json(plane));
+  }
+  const nlohmann::json document = {
+      {"planes", list}, {"points", points}, {"seconds", rounded_to(seconds, 1e-4)}};
+  std::ofstream planes_file(dir_ / "planes.json");
+  planes_file << document.dump(1) << '\n';
+  std::ofstream vrml_file(dir_ / "map.wrl");
+  write_vrml(vrml_file, sorted, path_);
+  jsonl_.flush();
+  binary_.flush();
+  trajectory_.flush();
+  if (!planes_file || !vrml_file || !jsonl_ || !binary_ || !trajectory_) {
+    return "writing into " + dir_.string() + " failed (disk full?)";
+  }
+  return {};
+}
+
+}  // namespace blockmap::cli

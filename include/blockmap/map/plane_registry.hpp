@@ -1,0 +1,196 @@
+// The mapper's planes over time. Each detection over the sliding window gives the planes of
+// what the window holds now; the registry keeps the map's planes across detections, under
+// ids that stay, and says what changed: a plane seen for the first time (added), one that grew
+// or moved (changed), one whose region has left the window for good (finalized).
+//
+// A plane's points are in two parts whose moments add up exactly (the paper's weighting by
+// size, as in the merger):
+//   - live: the points behind it in the latest detection, all inside the window;
+//   - frozen: the points of the tiles that left the window while it was live, taken from
+//     their samples as they left (samples within its noise band).
+// So the part of a wall the robot drove past is neither lost nor counted twice when the
+// window detects the rest of it again. A final plane keeps its moments: when the robot comes
+// back (a loop) and the window sees it again, it is live again under its id (reported as
+// changed when it grows), not a second plane.
+//
+// The latest detection is the authority on what the window holds. A detected plane that
+// matches several live planes shows they are one: the biggest takes the others' points and
+// ids of the others are removed. A live plane that no detection has matched for
+// retract_after_misses detections in a row is no longer there as a plane (what looked flat
+// from afar turned out to be foliage, or the laser's own scan plane through bushes): it is
+// finalized with the points that already left the window, or removed when there are none.
+//
+// Capacity, with a named policy when full: at most max_live_planes live planes; a new plane
+// that finds them all taken replaces the smallest live one if it is bigger (that one is
+// finalized early, counted), or is refused (counted). At most max_final_planes final planes; a
+// plane finalized when they are all taken replaces the smallest if it is bigger, else is
+// dropped (counted either way).
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "blockmap/core/arena.hpp"
+#include "blockmap/map/voxel_window.hpp"
+#include "blockmap/msg/plane_patch.hpp"
+#include "blockmap/planes/point_moments.hpp"
+
+namespace blockmap::map {
+
+struct PlaneRegistryConfig {
+  std::size_t max_live_planes = 512;
+  std::size_t max_final_planes = 2048;
+  // The most planes one detection gives (the detector's max_planes): it sizes the change list.
+  std::size_t max_detected_planes = 4096;
+  // A detected plane is a live plane's next look when their normals differ by at most
+  // match_angle_deg, each centroid lies within match_distance_m (or twice the planes' RMS
+  // distance, when larger) of the other plane, and their extents come within match_gap_m.
+  double match_angle_deg = 5.0;
+  double match_distance_m = 0.15;
+  double match_gap_m = 2.0;
+  // An evicted sample belongs to a live plane when its centroid lies within this band (or
+  // three times the plane's RMS distance, up to max_band_m) and inside its extent grown by
+  // the band.
+  double band_m = 0.1;
+  double max_band_m = 0.4;
+  std::uint32_t retract_after_misses = 3;
+  double min_final_support = 50.0;  // a retracted plane with fewer frozen points is removed
+  // A plane is reported changed when it moved or grew by more than these.
+  double change_angle_deg = 0.05;
+  double change_offset_m = 0.005;
+  double change_support_ratio = 0.01;
+  double change_extent_m = 0.05;
+};
+
+[[nodiscard]] std::string validate(const PlaneRegistryConfig& config);
+
+struct PlaneRegistryCounters {
+  std::uint64_t added = 0;
+  std::uint64_t changed = 0;
+  std::uint64_t finalized = 0;
+  std::uint64_t merged = 0;           // live planes found to be one with a bigger one: removed
+  std::uint64_t retracted = 0;        // no longer detected, nothing frozen: removed
+  std::uint64_t finalized_early = 0;  // live planes full: the smallest made room
+  std::uint64_t refused_full = 0;     // live planes full: the new one was the smallest
+  std::uint64_t final_dropped = 0;    // final planes full: the smallest was dropped
+  std::uint64_t samples_frozen = 0;   // evicted samples kept by a live plane
+  std::uint64_t reopened = 0;         // final planes seen again (the robot came back)
+};
+
+class PlaneRegistry final : public VoxelWindow::EvictionSink {
+ public:
+  void init(Arena& arena, const PlaneRegistryConfig& config);
+  [[nodiscard]] static std::size_t arena_bytes(const PlaneRegistryConfig& config) noexcept;
+
+  // The changes since begin_update() accumulate until the next begin_update().
+  void begin_update() noexcept { change_count_ = 0; }
+  [[nodiscard]] std::span<const msg::PlaneChange> changes() const noexcept {
+    return changes_.first(change_count_);
+  }
+
+  // A window tile's samples as it leaves: the live planes they lie on freeze them.
+  void on_evicted(const VoxelWindow::EvictedTile& tile) noexcept override;
+  // The planes of the latest detection over the window, with the moments of their points.
+  void update(std::span<const msg::PlanePatch> detected,
+              std::span<const planes::PointMoments> moments) noexcept;
+  // Live planes whose extent lies wholly outside `window_m` (x, y) are finalized.
+  void finalize_outside(const Eigen::AlignedBox2d& window_m) noexcept;
+  // The end of the run: every live plane is finalized.
+  void finalize_all() noexcept;
+
+  // The final planes (in no particular order).
+  [[nodiscard]] std::span<const msg::PlanePatch> final_planes() const noexcept {
+    return final_.first(final_count_);
+  }
+  [[nodiscard]] std::size_t live_count() const noexcept { return live_count_; }
+  // The most changes one update can hold.
+  [[nodiscard]] std::size_t change_capacity() const noexcept { return changes_.size(); }
+  // The live planes as they were last reported (slots not in use are skipped).
+  template <typename Visit>
+  void for_each_live(Visit&& visit) const {
+    for (const LivePlane& plane : live_) {
+      if (plane.in_use) {
+        visit(plane.reported);
+      }
+    }
+  }
+  [[nodiscard]] const PlaneRegistryCounters& counters() const noexcept { return counters_; }
+  [[nodiscard]] std::size_t memory_bytes() const noexcept {
+    return live_.size_bytes() + final_.size_bytes() + final_moments_.size_bytes() +
+           changes_.size_bytes() + scratch_2d_.size_bytes() + scratch_hull_.size_bytes();
+  }
+
+ private:
+  struct LivePlane {
+    bool in_use = false;
+    bool fresh = false;            // live holds the latest detection, and nothing froze since
+    std::uint64_t matched_in = 0;  // the update that last matched it
+    std::uint32_t misses = 0;      // detections in a row that did not match it
+    msg::PlaneKind kind = msg::PlaneKind::kOther;  // as the best look at it labelled it
+    double kind_support = 0.0;                     // the points of that look
+    planes::PointMoments live;
+    planes::PointMoments frozen;
+    std::array<Eigen::Vector3d, msg::kMaxPolygonVertices> live_polygon_m{};
+    std::uint8_t live_polygon_size = 0;
+    std::array<Eigen::Vector3d, msg::kMaxPolygonVertices> frozen_polygon_m{};
+    std::uint8_t frozen_polygon_size = 0;
+    Eigen::Vector3d reference_normal = Eigen::Vector3d::UnitZ();  // the reported side
+    msg::PlanePatch reported;                                     // as last reported
+    // The box of the reported polygon (Eigen's AlignedBox is not trivially destructible).
+    Eigen::Vector3d box_min_m = Eigen::Vector3d::Zero();
+    Eigen::Vector3d box_max_m = Eigen::Vector3d::Zero();
+    [[nodiscard]] Eigen::AlignedBox3d box_m() const noexcept { return {box_min_m, box_max_m}; }
+  };
+
+  [[nodiscard]] bool matches(const msg::PlanePatch& known, const Eigen::AlignedBox3d& known_box,
+                             const msg::PlanePatch& detected,
+                             const Eigen::AlignedBox3d& detected_box) const noexcept;
+  // Final planes that `detected` continues: reopened as a live plane when `into` is null
+  // (returned), else merged into `into`.
+  LivePlane* take_final_matches(const msg::PlanePatch& detected,
+                                const Eigen::AlignedBox3d& detected_box, LivePlane* into) noexcept;
+  void remove_final(std::size_t index) noexcept;
+  void store_final(const msg::PlanePatch& plane, const planes::PointMoments& moments) noexcept;
+  // The live plane `detected` continues (the biggest of those it matches, the others merged
+  // into it), or nullptr.
+  [[nodiscard]] LivePlane* match_and_merge(const msg::PlanePatch& detected) noexcept;
+  void absorb(LivePlane& big, LivePlane& small) noexcept;
+  void remove(LivePlane& plane) noexcept;
+  void count_misses() noexcept;
+  // A slot for a new plane of `support` points; nullptr when refused.
+  [[nodiscard]] LivePlane* free_slot(double support) noexcept;
+  // The points behind a plane: frozen and live.
+  [[nodiscard]] static planes::PointMoments points_of(const LivePlane& plane) noexcept;
+  // The plane of frozen + live points (or what is left of it) into `out`.
+  void combine(const LivePlane& plane, msg::PlanePatch& out) noexcept;
+  [[nodiscard]] bool differs(const msg::PlanePatch& a, const msg::PlanePatch& b) const noexcept;
+  void report(LivePlane& plane, msg::PlaneChangeKind change) noexcept;
+  void finalize(LivePlane& plane) noexcept;
+  void emit(msg::PlaneChangeKind change, const msg::PlanePatch& plane) noexcept;
+  // The convex hull of two polygons' vertices on the plane (normal, through centroid).
+  std::uint8_t hull_on_plane(const Eigen::Vector3d& normal, const Eigen::Vector3d& centroid,
+                             std::span<const Eigen::Vector3d> a, std::span<const Eigen::Vector3d> b,
+                             std::span<Eigen::Vector3d> out) noexcept;
+
+  PlaneRegistryConfig config_;
+  double cos_match_angle_ = 1.0;
+  double cos_change_angle_ = 1.0;
+  std::span<LivePlane> live_;
+  std::size_t live_count_ = 0;
+  std::span<msg::PlanePatch> final_;
+  std::span<planes::PointMoments> final_moments_;
+  std::size_t final_count_ = 0;
+  std::span<msg::PlaneChange> changes_;
+  std::size_t change_count_ = 0;
+  std::span<Eigen::Vector2d> scratch_2d_;
+  std::span<Eigen::Vector2d> scratch_hull_;
+  std::uint32_t next_id_ = 1;
+  std::uint64_t update_number_ = 0;
+  PlaneRegistryCounters counters_;
+};
+
+}  // namespace blockmap::map

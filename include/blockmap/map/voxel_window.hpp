@@ -1,0 +1,150 @@
+// The mapper's sliding window: the voxel samples of the space around the robot, in square
+// columns of space (tiles) laid out in a ring of tiles_across x tiles_across slots indexed
+// modulo its size, so that the window scrolls with the robot without moving what it holds. A
+// tile that falls out of the window is handed to the caller (its samples are the last the map
+// sees of that ground) and its samples go back to the free list.
+//
+// A sample keeps what plane fitting needs, not points: the point count and the first and
+// second moments about the voxel's centre (planes::VoxelSums, the plane detector's own
+// layout). Samples come from one pool sized at init and shared by all tiles (a street's tiles
+// hold tens of samples, a tile with a tall facade thousands); a tile's samples are a chain
+// through the pool, and a hash table with deletion finds a point's voxel. Nothing allocates
+// after init(); a point that finds the pool full is dropped and counted.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "blockmap/core/arena.hpp"
+#include "blockmap/planes/voxel_grid.hpp"
+
+namespace blockmap::map {
+
+struct VoxelWindowConfig {
+  // The plane detector's sample edge (planes::PlanesConfig::sample_size_m).
+  double voxel_size_m = 0.2;
+  // A whole number of voxels, and of the detector's section strides (4 voxels), so that no
+  // block of the detector straddles two tiles.
+  double tile_size_m = 8.0;
+  // Odd: the robot's tile is the middle one. 7 tiles of 8 m reach 24-32 m beyond the robot;
+  // returns beyond the edge are counted and dropped (the robot maps them as it comes nearer).
+  std::uint32_t tiles_across = 7;
+  // Room for the peaks of the simulated usc_block and benning (docs/mapper.md).
+  std::size_t max_samples = 81920;
+};
+
+// Empty when usable, otherwise what is wrong.
+[[nodiscard]] std::string validate(const VoxelWindowConfig& config);
+
+struct VoxelWindowCounters {
+  std::uint64_t points_added = 0;
+  std::uint64_t points_outside = 0;       // beyond the window's edge: dropped
+  std::uint64_t points_dropped_full = 0;  // a new voxel, and the pool full
+  std::uint64_t points_non_finite = 0;
+  std::uint64_t tiles_evicted = 0;
+  std::uint64_t samples_evicted = 0;
+  std::size_t peak_samples = 0;
+};
+
+class VoxelWindow {
+ public:
+  // A tile leaving the window: its square in the local frame and its samples, a chunk at a
+  // time (at most kEvictionChunk each).
+  static constexpr std::size_t kEvictionChunk = 1024;
+  struct EvictedTile {
+    Eigen::AlignedBox2d bounds_m;
+    double voxel_size_m = 0.0;
+    std::span<const planes::VoxelSums> samples;
+  };
+  // Called for each chunk of each tile that leaves the window.
+  class EvictionSink {
+   public:
+    EvictionSink() = default;
+    EvictionSink(const EvictionSink&) = default;
+    EvictionSink& operator=(const EvictionSink&) = default;
+    virtual ~EvictionSink() = default;
+    virtual void on_evicted(const EvictedTile& tile) noexcept = 0;
+  };
+
+  void init(Arena& arena, const VoxelWindowConfig& config);
+  [[nodiscard]] static std::size_t arena_bytes(const VoxelWindowConfig& config) noexcept;
+
+  // Centres the window on the tile holding position_m. Tiles that fall out of it are handed to
+  // `sink` and forgotten; the first call only places the window. Cost: the evicted samples.
+  void recentre(const Eigen::Vector2d& position_m, EvictionSink& sink) noexcept;
+  [[nodiscard]] bool placed() const noexcept { return placed_; }
+  // The window's square in the local frame (empty before the first recentre()).
+  [[nodiscard]] Eigen::AlignedBox2d bounds_m() const noexcept;
+
+  // A point in the local frame; dropped and counted when outside the window, non-finite, or
+  // in a new voxel when the pool is full.
+  void add_point(const Eigen::Vector3f& point_m) noexcept;
+  void add_points(std::span<const Eigen::Vector3f> points_m) noexcept;
+
+  // Every sample in the window, tile slot by tile slot: the same points in the same order
+  // give the same sequence.
+  template <typename Visit>  // void(const planes::VoxelSums&)
+  void for_each_sample(Visit&& visit) const {
+    for (const TileSlot& slot : slots_) {
+      for (std::uint32_t i = slot.first; i != kNone; i = next_[i]) {
+        visit(samples_[i]);
+      }
+    }
+  }
+
+  [[nodiscard]] std::size_t size() const noexcept { return sample_count_; }
+  [[nodiscard]] std::size_t capacity() const noexcept { return samples_.size(); }
+  [[nodiscard]] const VoxelWindowConfig& config() const noexcept { return config_; }
+  [[nodiscard]] const VoxelWindowCounters& counters() const noexcept { return counters_; }
+  [[nodiscard]] std::size_t memory_bytes() const noexcept {
+    return slots_.size_bytes() + samples_.size_bytes() + next_.size_bytes() + table_.size_bytes() +
+           chunk_.size_bytes();
+  }
+
+ private:
+  static constexpr std::uint32_t kNone = 0xFFFFFFFFu;
+  struct TileSlot {
+    std::int64_t tile_x = 0;  // the tile this slot holds (meaningful when it holds samples)
+    std::int64_t tile_y = 0;
+    std::uint32_t first = kNone;  // its samples' chain through the pool
+    std::uint32_t count = 0;
+  };
+  struct TableSlot {
+    planes::CellKey key = planes::kNoCell;
+    std::uint32_t sample = kNone;
+  };
+
+  [[nodiscard]] std::int64_t tile_of_voxel(std::int64_t voxel) const noexcept;
+  [[nodiscard]] std::size_t slot_of_tile(std::int64_t tile_x, std::int64_t tile_y) const noexcept;
+  [[nodiscard]] bool tile_inside(std::int64_t tile_x, std::int64_t tile_y) const noexcept;
+  [[nodiscard]] Eigen::AlignedBox2d tile_bounds_m(std::int64_t tile_x,
+                                                  std::int64_t tile_y) const noexcept;
+  // The sample of `key` (in tile slot `slot`), created when new; kNone when the pool is full.
+  [[nodiscard]] std::uint32_t find_or_create(planes::CellKey key, TileSlot& slot) noexcept;
+  [[nodiscard]] std::size_t home_of(planes::CellKey key) const noexcept;
+  void erase_key(planes::CellKey key) noexcept;
+  void evict(TileSlot& slot, EvictionSink& sink) noexcept;
+
+  VoxelWindowConfig config_;
+  float inverse_voxel_m_ = 5.0f;
+  std::int64_t voxels_per_tile_ = 40;
+  std::int64_t half_tiles_ = 5;
+  bool placed_ = false;
+  std::int64_t centre_tile_x_ = 0;
+  std::int64_t centre_tile_y_ = 0;
+  std::span<TileSlot> slots_;
+  std::span<planes::VoxelSums> samples_;
+  std::span<std::uint32_t> next_;  // the chain of a tile's samples, and the free list
+  std::uint32_t free_first_ = kNone;
+  std::size_t sample_count_ = 0;
+  std::span<TableSlot> table_;  // linear probing, at most half full; deletion shifts back
+  std::uint32_t table_shift_ = 64;
+  std::span<planes::VoxelSums> chunk_;  // an evicted tile's samples, gathered for the sink
+  VoxelWindowCounters counters_;
+};
+
+}  // namespace blockmap::map

@@ -1,0 +1,250 @@
+// The onboard mapper: the one object that takes the devices' messages in and hands plane-list
+// updates out. Its step reads like the paper's pipeline:
+//   odometry + IMU + GPS -> particle filter (the Localizer)         -> the robot's pose
+//   laser scan + pose at each beam -> ScanProjector                  -> points
+//   points -> VoxelWindow (a ring of tiles around the robot)         -> samples
+//   every extract_every_s: samples -> PlaneDetector (Hough over sections, refit, merge)
+//                          -> PlaneRegistry (ids over time)          -> added / changed / finalized
+//
+// Messages may arrive in any interleaving within reorder_window_s of the newest one: they wait
+// in a fixed-size buffer ordered by time. A scan waits until the poses cover its last beam.
+// Everything is sized by init() from the configuration; step() allocates nothing. The same
+// messages in the same order give the same updates, bit for bit.
+//
+// A laser that moves within its own scan plane (a level one on a driving robot) lays every
+// return on that plane, scan after scan, whatever it hits: the foliage, hedges and people it
+// sweeps become flat sheets through the places it has been. Planes on such a laser's path
+// are dropped (planes::PlaneExclusion); a laser sweeping across the way (the paper's vertical
+// one) paints a new slice each scan and makes no sheet.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <string>
+
+#include "blockmap/core/arena.hpp"
+#include "blockmap/localize/localizer.hpp"
+#include "blockmap/map/plane_registry.hpp"
+#include "blockmap/map/scan_projector.hpp"
+#include "blockmap/map/voxel_window.hpp"
+#include "blockmap/msg/laser_scan.hpp"
+#include "blockmap/msg/odometry.hpp"
+#include "blockmap/msg/plane_patch.hpp"
+#include "blockmap/planes/plane_detector.hpp"
+#include "blockmap/planes/planes_config.hpp"
+
+namespace blockmap::pipeline {
+
+inline constexpr std::size_t kMaxLasers = 4;
+// Positions of each laser kept for recognising its scan plane (128 m at 0.5 m).
+inline constexpr std::size_t kScanPlanePath = 256;
+
+// Where the poses that project the scans come from.
+enum class PoseSource : std::uint8_t {
+  kLocalizer,  // the particle filter, fed by on_base() and on_fix() (on the robot)
+  kExternal,   // on_pose(): a reference trajectory (a simulation's truth, a survey)
+};
+
+// The detector's defaults for a window: 9 samples per occupied block on the simulated
+// worlds, so a quarter of the samples' count in blocks is plenty.
+[[nodiscard]] inline planes::PlanesConfig window_planes_config() noexcept {
+  planes::PlanesConfig config;
+  config.max_blocks = 20480;
+  config.max_patches = 8192;
+  config.max_planes = 512;
+  return config;
+}
+
+// The localizer's defaults for the mapper: 2,000 particles (half the batch default) keep the
+// whole pipeline inside 64 MiB; the smoothing window stays one minute.
+[[nodiscard]] inline localize::LocalizerConfig mapper_localizer_config() noexcept {
+  localize::LocalizerConfig config;
+  config.filter.particle_count = 2000;
+  return config;
+}
+
+struct MapperConfig {
+  localize::LocalizerConfig localizer = mapper_localizer_config();
+  PoseSource pose_source = PoseSource::kLocalizer;
+  std::size_t max_external_poses = 1024;  // kExternal: the newest poses kept to interpolate
+
+  std::array<map::SensorMount, kMaxLasers> laser_mounts{};
+  std::size_t laser_count = 0;
+  map::ScanProjectorConfig projection;
+  map::VoxelWindowConfig window;
+  // The detector runs over the window: its sample capacity is the window's (init() sets it),
+  // and a window holds fewer planes and section planes than a whole city's cloud.
+  planes::PlanesConfig planes = window_planes_config();
+  map::PlaneRegistryConfig registry;
+
+  double extract_every_s = 1.0;  // of scan time, between plane extractions
+  // A detected plane within this angle of a laser's scan plane that passes this close to
+  // where the laser has been, while moving within that plane, is that scan plane
+  // (planes::PlaneExclusion): not reported. The positions are kept every
+  // scan_plane_spacing_m of its path (the last kScanPlanePath). A real surface there (a car's
+  // bonnet at the height of a level laser) is lost with it.
+  double scan_plane_angle_deg = 10.0;
+  double scan_plane_distance_m = 0.5;
+  double scan_plane_spacing_m = 0.5;
+  double reorder_window_s = 0.25;  // a message this much older than the newest is released
+  std::size_t reorder_capacity = 512;
+  std::size_t scan_queue_capacity = 128;  // scans wait for the reorder window and the poses
+};
+
+// Empty when usable, otherwise what is wrong.
+[[nodiscard]] std::string validate(const MapperConfig& config);
+
+struct MapperCounters {
+  std::uint64_t base_samples = 0;
+  std::uint64_t fixes = 0;
+  std::uint64_t fixes_rejected = 0;   // the localizer left them out as outliers
+  std::uint64_t fixes_recovered = 0;  // the localizer started over around them
+  std::uint64_t poses = 0;
+  std::uint64_t scans = 0;
+  std::uint64_t scans_projected = 0;
+  std::uint64_t scans_refused_full = 0;  // the scan queue was full: the newest was refused
+  std::uint64_t scans_without_pose = 0;  // no pose covers the scan (before the first one)
+  std::uint64_t scans_unknown_laser = 0;
+  std::uint64_t messages_late = 0;   // older than what was already processed: dropped
+  std::uint64_t reorder_forced = 0;  // the reorder buffer was full: its oldest went early
+  std::uint64_t extractions = 0;
+  std::size_t peak_blocks = 0;             // the detector's occupied blocks, for sizing max_blocks
+  std::uint64_t scan_planes_rejected = 0;  // detected planes that were a laser's scan plane
+  std::uint64_t points = 0;
+};
+
+// A plane-list update: what changed since the previous one, at `stamp_ns` (scan time).
+struct PlaneUpdate {
+  TimestampNs stamp_ns = 0;
+  std::span<const msg::PlaneChange> changes;
+};
+
+// Sees every projected scan's points (a recorder of the point cloud, when one is asked for).
+class PointSink {
+ public:
+  PointSink() = default;
+  PointSink(const PointSink&) = default;
+  PointSink& operator=(const PointSink&) = default;
+  virtual ~PointSink() = default;
+  virtual void on_points(std::span<const Eigen::Vector3f> points_m) = 0;
+};
+
+class Mapper {
+ public:
+  // Takes every buffer from the arena; CHECK-fails on an invalid configuration.
+  void init(Arena& arena, const MapperConfig& config);
+  // An arena budget that init() fits in.
+  [[nodiscard]] static std::size_t arena_bytes(const MapperConfig& config) noexcept;
+
+  // Messages in. Each is queued (or counted and dropped) and processed by step().
+  void on_base(const msg::OdometrySample& odometry, const msg::ImuSample& imu) noexcept;
+  void on_fix(const localize::GpsObservation& fix, double up_m) noexcept;
+  void on_pose(const localize::Pose3& pose) noexcept;
+  // False when the scan was refused (queue full, or no such laser); counted either way.
+  bool on_scan(std::size_t laser, const msg::LaserScan& scan) noexcept;
+  // Optional; the sink must outlive the mapper's use of it.
+  void set_point_sink(PointSink* sink) noexcept { point_sink_ = sink; }
+  // No more messages: step() then processes everything left, extracts once more and
+  // finalizes every plane.
+  void end_of_input() noexcept { ending_ = true; }
+
+  // Runs the pipeline over what is due. True when it produced a plane update (update()),
+  // which stays valid until the next step(); call again until it returns false.
+  bool step() noexcept;
+  [[nodiscard]] PlaneUpdate update() const noexcept { return {update_stamp_ns_, changes_}; }
+
+  // Poses of the localizer that left its smoothing window (each once), for trajectory.csv;
+  // at the end, smoothed_poses() gives the rest.
+  std::size_t drain_final_poses(std::span<localize::Pose3> out) noexcept;
+  std::size_t smoothed_poses(std::span<localize::Pose3> out) const noexcept;
+
+  [[nodiscard]] std::span<const msg::PlanePatch> final_planes() const noexcept {
+    return registry_.final_planes();
+  }
+  [[nodiscard]] const MapperConfig& config() const noexcept { return config_; }
+  [[nodiscard]] const MapperCounters& counters() const noexcept { return counters_; }
+  [[nodiscard]] const map::VoxelWindow& window() const noexcept { return window_; }
+  [[nodiscard]] const map::PlaneRegistry& registry() const noexcept { return registry_; }
+  [[nodiscard]] const planes::PlaneDetector& detector() const noexcept { return detector_; }
+  [[nodiscard]] const localize::Localizer& localizer() const noexcept { return localizer_; }
+  [[nodiscard]] const map::ProjectionCounters& projection(std::size_t laser) const noexcept {
+    return projectors_[laser].counters();
+  }
+
+ private:
+  enum class Kind : std::uint8_t { kBase, kFix, kPose };
+  struct Pending {
+    TimestampNs stamp_ns = 0;
+    Kind kind = Kind::kBase;
+    msg::OdometrySample odometry;
+    msg::ImuSample imu;
+    localize::GpsObservation fix;
+    double up_m = 0.0;
+    localize::Pose3 pose;
+  };
+  struct QueuedScan {
+    std::size_t laser = 0;
+    msg::LaserScan scan;
+  };
+
+  void enqueue(const Pending& message) noexcept;
+  void release_due() noexcept;
+  void apply(const Pending& message) noexcept;
+  // The newest time the poses cover.
+  [[nodiscard]] bool pose_horizon(TimestampNs& out) const noexcept;
+  [[nodiscard]] bool pose_at(TimestampNs stamp_ns, localize::Pose3& out) const noexcept;
+  // The oldest queued scan whose last beam the poses cover (all of them when ending); or -1.
+  [[nodiscard]] std::ptrdiff_t next_ready_scan() const noexcept;
+  void project(const QueuedScan& queued) noexcept;
+  void remove_scan(std::size_t index) noexcept;
+  void extract(TimestampNs stamp_ns) noexcept;
+
+  MapperConfig config_;
+  localize::Localizer localizer_;
+  std::array<map::ScanProjector, kMaxLasers> projectors_{
+      map::ScanProjector({}, {}), map::ScanProjector({}, {}), map::ScanProjector({}, {}),
+      map::ScanProjector({}, {})};
+  map::VoxelWindow window_;
+  planes::PlaneDetector detector_;
+  map::PlaneRegistry registry_;
+
+  std::span<Pending> pending_;  // ordered by time, oldest first
+  std::size_t pending_count_ = 0;
+  TimestampNs newest_in_ns_ = 0;
+  TimestampNs released_ns_ = 0;  // everything up to here went to the localizer
+  bool released_any_ = false;
+
+  std::span<localize::Pose3> poses_;  // kExternal: a ring, oldest at pose_first_
+  std::size_t pose_first_ = 0;
+  std::size_t pose_count_ = 0;
+
+  std::span<QueuedScan> scans_;
+  std::size_t scan_count_ = 0;
+  std::span<Eigen::Vector3f> points_;
+  // Each laser's scan plane at its latest scan, and where it has been (a ring, any order).
+  struct LaserPath {
+    std::array<Eigen::Vector3d, kScanPlanePath> origins_m{};
+    std::size_t count = 0;
+    std::size_t next = 0;
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+    Eigen::Vector3d last_origin_m = Eigen::Vector3d::Zero();
+  };
+  void record_laser_position(std::size_t laser, const localize::Pose3& pose) noexcept;
+  std::array<LaserPath, kMaxLasers> laser_paths_{};
+  double cos_scan_plane_angle_ = 1.0;
+  double sin_scan_plane_angle_ = 0.0;
+
+  bool extraction_scheduled_ = false;
+  TimestampNs next_extraction_ns_ = 0;
+  TimestampNs last_scan_ns_ = 0;
+  bool ending_ = false;
+  bool final_extracted_ = false;
+  bool finalized_ = false;
+  TimestampNs update_stamp_ns_ = 0;
+  std::span<const msg::PlaneChange> changes_;
+  PointSink* point_sink_ = nullptr;
+  MapperCounters counters_;
+};
+
+}  // namespace blockmap::pipeline

@@ -1,0 +1,524 @@
+#include "blockmap/map/plane_registry.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "blockmap/core/check.hpp"
+#include "blockmap/planes/polygon.hpp"
+
+namespace blockmap::map {
+namespace {
+
+constexpr double kDegree = std::numbers::pi / 180.0;
+
+Eigen::AlignedBox3d box_of(std::span<const Eigen::Vector3d> polygon) noexcept {
+  Eigen::AlignedBox3d box;
+  for (const Eigen::Vector3d& p : polygon) {
+    box.extend(p);
+  }
+  return box;
+}
+
+std::span<const Eigen::Vector3d> polygon_of(const msg::PlanePatch& plane) noexcept {
+  return {plane.polygon_m.data(), plane.polygon_size};
+}
+
+// A voxel's sums as moments about the frame's origin.
+planes::PointMoments sample_moments(const planes::VoxelSums& sums, double voxel_size_m) noexcept {
+  return planes::VoxelGrid::moments_of(sums, voxel_size_m, Eigen::Vector3d::Zero());
+}
+
+// Between two begin_update(): each plane live before it leaves at most once (finalized,
+// merged or removed) and is changed at most once; each detected plane adds at most one plane
+// and pushes out at most one when the registry is full.
+std::size_t changes_per_update(const PlaneRegistryConfig& config) noexcept {
+  return 2 * (config.max_live_planes + config.max_detected_planes);
+}
+
+}  // namespace
+
+std::string validate(const PlaneRegistryConfig& config) {
+  if (config.max_live_planes < 1 || config.max_final_planes < 1 ||
+      config.max_live_planes > (std::size_t{1} << 20) ||
+      config.max_final_planes > (std::size_t{1} << 24)) {
+    return "registry: max_live_planes (1 to 2^20) and max_final_planes (1 to 2^24) are needed";
+  }
+  if (!(config.match_angle_deg > 0.0 && config.match_angle_deg < 90.0) ||
+      !(config.match_distance_m > 0.0) || !(config.match_gap_m >= 0.0)) {
+    return "registry: match_angle_deg (0-90), match_distance_m (> 0) and match_gap_m (>= 0)";
+  }
+  if (config.retract_after_misses < 1 || !(config.min_final_support >= 0.0)) {
+    return "registry: retract_after_misses must be at least 1, min_final_support not negative";
+  }
+  if (!(config.band_m > 0.0) || !(config.max_band_m >= config.band_m)) {
+    return "registry: band_m must be positive and at most max_band_m";
+  }
+  if (!(config.change_angle_deg >= 0.0) || !(config.change_offset_m >= 0.0) ||
+      !(config.change_support_ratio >= 0.0) || !(config.change_extent_m >= 0.0)) {
+    return "registry: the change thresholds must not be negative";
+  }
+  return {};
+}
+
+void PlaneRegistry::init(Arena& arena, const PlaneRegistryConfig& config) {
+  const std::string problem = validate(config);
+  BLOCKMAP_CHECK_MSG(problem.empty(), "an invalid registry configuration reached init()");
+  config_ = config;
+  cos_match_angle_ = std::cos(config.match_angle_deg * kDegree);
+  cos_change_angle_ = std::cos(config.change_angle_deg * kDegree);
+  live_ = arena.allocate_array<LivePlane>(config.max_live_planes, "registry.live");
+  final_ = arena.allocate_array<msg::PlanePatch>(config.max_final_planes, "registry.final");
+  final_moments_ =
+      arena.allocate_array<planes::PointMoments>(config.max_final_planes, "registry.final");
+  changes_ = arena.allocate_array<msg::PlaneChange>(changes_per_update(config), "registry.changes");
+  constexpr std::size_t kPoints = VoxelWindow::kEvictionChunk + 2 * msg::kMaxPolygonVertices;
+  scratch_2d_ = arena.allocate_array<Eigen::Vector2d>(kPoints, "registry.scratch");
+  scratch_hull_ = arena.allocate_array<Eigen::Vector2d>(kPoints + 1, "registry.scratch");
+}
+
+std::size_t PlaneRegistry::arena_bytes(const PlaneRegistryConfig& config) noexcept {
+  constexpr std::size_t kPoints = VoxelWindow::kEvictionChunk + 2 * msg::kMaxPolygonVertices;
+  return config.max_live_planes * sizeof(LivePlane) +
+         config.max_final_planes * (sizeof(msg::PlanePatch) + sizeof(planes::PointMoments)) +
+         changes_per_update(config) * sizeof(msg::PlaneChange) +
+         (2 * kPoints + 1) * sizeof(Eigen::Vector2d) + std::size_t{5} * 64;
+}
+
+std::uint8_t PlaneRegistry::hull_on_plane(const Eigen::Vector3d& normal,
+                                          const Eigen::Vector3d& centroid,
+                                          std::span<const Eigen::Vector3d> a,
+                                          std::span<const Eigen::Vector3d> b,
+                                          std::span<Eigen::Vector3d> out) noexcept {
+  const auto [u, v] = planes::plane_basis(normal);
+  std::size_t n = 0;
+  for (const std::span<const Eigen::Vector3d> points : {a, b}) {
+    for (const Eigen::Vector3d& p : points) {
+      if (n < scratch_2d_.size()) {
+        scratch_2d_[n++] = Eigen::Vector2d(u.dot(p - centroid), v.dot(p - centroid));
+      }
+    }
+  }
+  std::size_t size = planes::convex_hull(scratch_2d_.first(n), scratch_hull_);
+  size = planes::simplify_polygon(scratch_hull_, size, msg::kMaxPolygonVertices);
+  for (std::size_t i = 0; i < size; ++i) {
+    out[i] = centroid + scratch_hull_[i].x() * u + scratch_hull_[i].y() * v;
+  }
+  return static_cast<std::uint8_t>(size);
+}
+
+void PlaneRegistry::on_evicted(const VoxelWindow::EvictedTile& tile) noexcept {
+  for (LivePlane& plane : live_) {
+    if (!plane.in_use || plane.reported.id == 0) {
+      continue;
+    }
+    const msg::PlanePatch& reported = plane.reported;
+    const double band = std::clamp(3.0 * reported.rmse_m, config_.band_m, config_.max_band_m);
+    Eigen::AlignedBox3d reach = plane.box_m();
+    reach.min().array() -= band;
+    reach.max().array() += band;
+    const Eigen::AlignedBox2d reach_2d(reach.min().head<2>(), reach.max().head<2>());
+    if (!reach_2d.intersects(tile.bounds_m)) {
+      continue;
+    }
+    // The samples on this plane: their moments freeze, and their centroids (with the frozen
+    // polygon's vertices) give its extent.
+    const std::pair<Eigen::Vector3d, Eigen::Vector3d> basis = planes::plane_basis(reported.normal);
+    const auto on_plane = [&basis, &reported](const Eigen::Vector3d& p) {
+      const Eigen::Vector3d offset = p - reported.centroid_m;
+      return Eigen::Vector2d(basis.first.dot(offset), basis.second.dot(offset));
+    };
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < plane.frozen_polygon_size; ++i) {
+      scratch_2d_[n++] = on_plane(plane.frozen_polygon_m[i]);
+    }
+    std::size_t kept = 0;
+    for (const planes::VoxelSums& sums : tile.samples) {
+      if (sums.point_count == 0) {
+        continue;
+      }
+      const planes::PointMoments moments = sample_moments(sums, tile.voxel_size_m);
+      const Eigen::Vector3d centroid = moments.mean();
+      if (std::abs(reported.normal.dot(centroid) - reported.d_m) > band ||
+          !reach.contains(centroid)) {
+        continue;
+      }
+      plane.frozen.merge(moments);
+      scratch_2d_[n++] = on_plane(centroid);  // room: a chunk plus a polygon
+      ++kept;
+    }
+    if (kept == 0) {
+      continue;
+    }
+    std::size_t size = planes::convex_hull(scratch_2d_.first(n), scratch_hull_);
+    size = planes::simplify_polygon(scratch_hull_, size, msg::kMaxPolygonVertices);
+    for (std::size_t i = 0; i < size; ++i) {
+      plane.frozen_polygon_m[i] = reported.centroid_m + scratch_hull_[i].x() * basis.first +
+                                  scratch_hull_[i].y() * basis.second;
+    }
+    plane.frozen_polygon_size = static_cast<std::uint8_t>(size);
+    plane.fresh = false;  // its live points include some of these until the next detection
+    counters_.samples_frozen += kept;
+  }
+}
+
+bool PlaneRegistry::matches(const msg::PlanePatch& known, const Eigen::AlignedBox3d& known_box,
+                            const msg::PlanePatch& detected,
+                            const Eigen::AlignedBox3d& detected_box) const noexcept {
+  if (std::abs(known.normal.dot(detected.normal)) < cos_match_angle_) {
+    return false;
+  }
+  const double tolerance =
+      std::max(config_.match_distance_m, 2.0 * std::max(known.rmse_m, detected.rmse_m));
+  if (std::abs(known.normal.dot(detected.centroid_m) - known.d_m) > tolerance ||
+      std::abs(detected.normal.dot(known.centroid_m) - detected.d_m) > tolerance) {
+    return false;
+  }
+  return known_box.exteriorDistance(detected_box) <= config_.match_gap_m;
+}
+
+PlaneRegistry::LivePlane* PlaneRegistry::match_and_merge(const msg::PlanePatch& detected) noexcept {
+  const Eigen::AlignedBox3d detected_box = box_of(polygon_of(detected));
+  // Planes added by this update are not matched again: the detector merged the window.
+  const auto candidate = [&](const LivePlane& plane) {
+    return plane.in_use && plane.reported.id != 0 &&
+           matches(plane.reported, plane.box_m(), detected, detected_box);
+  };
+  LivePlane* biggest = nullptr;
+  for (LivePlane& plane : live_) {
+    if (candidate(plane) &&
+        (biggest == nullptr || plane.reported.support > biggest->reported.support)) {
+      biggest = &plane;
+    }
+  }
+  if (biggest == nullptr) {
+    // Not live: perhaps a final plane the robot has come back to.
+    return take_final_matches(detected, detected_box, nullptr);
+  }
+  for (LivePlane& plane : live_) {
+    if (&plane != biggest && candidate(plane)) {
+      absorb(*biggest, plane);
+    }
+  }
+  static_cast<void>(take_final_matches(detected, detected_box, biggest));
+  return biggest;
+}
+
+PlaneRegistry::LivePlane* PlaneRegistry::take_final_matches(const msg::PlanePatch& detected,
+                                                            const Eigen::AlignedBox3d& detected_box,
+                                                            LivePlane* into) noexcept {
+  for (std::size_t i = 0; i < final_count_;) {
+    const msg::PlanePatch final_plane = final_[i];
+    if (!matches(final_plane, box_of(polygon_of(final_plane)), detected, detected_box)) {
+      ++i;
+      continue;
+    }
+    const planes::PointMoments moments = final_moments_[i];
+    remove_final(i);  // i now holds the next one
+    if (into == nullptr) {
+      LivePlane* slot = free_slot(final_plane.support);
+      if (slot == nullptr) {
+        store_final(final_plane, moments);  // no room to reopen it: it stays final
+        return nullptr;
+      }
+      *slot = LivePlane{};
+      slot->in_use = true;
+      ++live_count_;
+      slot->kind = final_plane.kind;
+      slot->kind_support = final_plane.support;
+      slot->frozen = moments;
+      slot->frozen_polygon_m = final_plane.polygon_m;
+      slot->frozen_polygon_size = final_plane.polygon_size;
+      slot->reference_normal = final_plane.normal;
+      slot->reported = final_plane;
+      const Eigen::AlignedBox3d box = box_of(polygon_of(final_plane));
+      slot->box_min_m = box.min();
+      slot->box_max_m = box.max();
+      ++counters_.reopened;
+      into = slot;
+      continue;
+    }
+    // A second final plane on the same surface: one with the first.
+    into->frozen.merge(moments);
+    std::array<Eigen::Vector3d, msg::kMaxPolygonVertices> joined{};
+    into->frozen_polygon_size =
+        hull_on_plane(into->reported.normal, into->reported.centroid_m,
+                      {into->frozen_polygon_m.data(), into->frozen_polygon_size},
+                      polygon_of(final_plane), joined);
+    into->frozen_polygon_m = joined;
+    emit(msg::PlaneChangeKind::kRemoved, final_plane);
+    ++counters_.merged;
+  }
+  return into;
+}
+
+void PlaneRegistry::remove_final(std::size_t index) noexcept {
+  --final_count_;
+  final_[index] = final_[final_count_];
+  final_moments_[index] = final_moments_[final_count_];
+}
+
+void PlaneRegistry::store_final(const msg::PlanePatch& plane,
+                                const planes::PointMoments& moments) noexcept {
+  if (final_count_ < final_.size()) {
+    final_[final_count_] = plane;
+    final_moments_[final_count_] = moments;
+    ++final_count_;
+    return;
+  }
+  ++counters_.final_dropped;
+  const auto smallest = static_cast<std::size_t>(
+      std::min_element(final_.begin(), final_.end(),
+                       [](const msg::PlanePatch& a, const msg::PlanePatch& b) {
+                         return a.support < b.support;
+                       }) -
+      final_.begin());
+  if (final_[smallest].support < plane.support) {
+    final_[smallest] = plane;
+    final_moments_[smallest] = moments;
+  }
+}
+
+void PlaneRegistry::absorb(LivePlane& big, LivePlane& small) noexcept {
+  big.frozen.merge(small.frozen);
+  if (small.kind_support > big.kind_support) {
+    big.kind = small.kind;
+    big.kind_support = small.kind_support;
+  }
+  std::array<Eigen::Vector3d, msg::kMaxPolygonVertices> joined{};
+  if (small.frozen_polygon_size > 0) {
+    const std::uint8_t size =
+        hull_on_plane(big.reported.normal, big.reported.centroid_m,
+                      {big.frozen_polygon_m.data(), big.frozen_polygon_size},
+                      {small.frozen_polygon_m.data(), small.frozen_polygon_size}, joined);
+    big.frozen_polygon_m = joined;
+    big.frozen_polygon_size = size;
+  }
+  // What an earlier detection of this update gave the small one is the big one's too.
+  if (small.matched_in == update_number_) {
+    if (big.matched_in == update_number_) {
+      big.live.merge(small.live);
+      const std::uint8_t size = hull_on_plane(
+          big.reference_normal, big.live.mean(), {big.live_polygon_m.data(), big.live_polygon_size},
+          {small.live_polygon_m.data(), small.live_polygon_size}, joined);
+      big.live_polygon_m = joined;
+      big.live_polygon_size = size;
+    } else {
+      big.matched_in = update_number_;
+      big.live = small.live;
+      big.live_polygon_m = small.live_polygon_m;
+      big.live_polygon_size = small.live_polygon_size;
+      big.reference_normal = small.reference_normal;
+    }
+    big.fresh = true;
+  }
+  ++counters_.merged;
+  remove(small);
+}
+
+void PlaneRegistry::remove(LivePlane& plane) noexcept {
+  emit(msg::PlaneChangeKind::kRemoved, plane.reported);
+  plane.in_use = false;
+  --live_count_;
+}
+
+void PlaneRegistry::count_misses() noexcept {
+  for (LivePlane& plane : live_) {
+    if (!plane.in_use || plane.reported.id == 0) {
+      continue;
+    }
+    if (plane.matched_in == update_number_) {
+      plane.misses = 0;
+      continue;
+    }
+    plane.fresh = false;
+    if (++plane.misses < config_.retract_after_misses) {
+      continue;
+    }
+    if (plane.frozen.weight >= config_.min_final_support) {
+      finalize(plane);  // what left the window while it was seen stays in the map
+    } else {
+      ++counters_.retracted;
+      remove(plane);
+    }
+  }
+}
+
+PlaneRegistry::LivePlane* PlaneRegistry::free_slot(double support) noexcept {
+  if (live_count_ < live_.size()) {
+    for (LivePlane& plane : live_) {
+      if (!plane.in_use) {
+        return &plane;
+      }
+    }
+  }
+  LivePlane* smallest = nullptr;
+  for (LivePlane& plane : live_) {
+    if (plane.reported.id != 0 &&
+        (smallest == nullptr || plane.reported.support < smallest->reported.support)) {
+      smallest = &plane;
+    }
+  }
+  if (smallest == nullptr || smallest->reported.support >= support) {
+    ++counters_.refused_full;
+    return nullptr;
+  }
+  ++counters_.finalized_early;
+  finalize(*smallest);
+  return smallest;
+}
+
+void PlaneRegistry::update(std::span<const msg::PlanePatch> detected,
+                           std::span<const planes::PointMoments> moments) noexcept {
+  BLOCKMAP_CHECK_MSG(detected.size() == moments.size(), "each detected plane needs its moments");
+  ++update_number_;
+  for (std::size_t i = 0; i < detected.size(); ++i) {
+    const msg::PlanePatch& seen = detected[i];
+    LivePlane* plane = match_and_merge(seen);
+    if (plane == nullptr) {
+      plane = free_slot(seen.support);
+      if (plane == nullptr) {
+        continue;
+      }
+      *plane = LivePlane{};
+      plane->in_use = true;
+      ++live_count_;
+    }
+    if (plane->matched_in != update_number_) {
+      // The first look at it in this detection: the live part is replaced.
+      plane->matched_in = update_number_;
+      plane->live = moments[i];
+      plane->live_polygon_size = seen.polygon_size;
+      std::copy_n(seen.polygon_m.begin(), seen.polygon_size, plane->live_polygon_m.begin());
+      plane->reference_normal = seen.normal;
+    } else {
+      // More of it (the detector saw two pieces that the map knows are one).
+      plane->live.merge(moments[i]);
+      std::array<Eigen::Vector3d, msg::kMaxPolygonVertices> joined{};
+      const std::uint8_t size = hull_on_plane(
+          plane->reference_normal, plane->live.mean(),
+          {plane->live_polygon_m.data(), plane->live_polygon_size}, polygon_of(seen), joined);
+      plane->live_polygon_m = joined;
+      plane->live_polygon_size = size;
+    }
+    plane->fresh = true;
+    // The label of the best look: a window that holds a corner of a plane labels it by what
+    // else it holds (the ground is the lowest large horizontal plane in it).
+    if (seen.support >= plane->kind_support) {
+      plane->kind = seen.kind;
+      plane->kind_support = seen.support;
+    }
+  }
+  count_misses();
+  for (LivePlane& plane : live_) {
+    if (!plane.in_use || plane.matched_in != update_number_) {
+      continue;
+    }
+    if (plane.reported.id == 0) {
+      plane.reported.id = next_id_++;
+      report(plane, msg::PlaneChangeKind::kAdded);
+      continue;
+    }
+    msg::PlanePatch now = plane.reported;
+    combine(plane, now);
+    if (differs(now, plane.reported)) {
+      report(plane, msg::PlaneChangeKind::kChanged);
+    }
+  }
+}
+
+planes::PointMoments PlaneRegistry::points_of(const LivePlane& plane) noexcept {
+  planes::PointMoments points = plane.frozen;
+  // A live part that is not fresh may hold points that have frozen since: left out, unless
+  // it is all there is.
+  if (plane.fresh || plane.frozen.weight == 0.0) {
+    points.merge(plane.live);
+  }
+  return points;
+}
+
+void PlaneRegistry::combine(const LivePlane& plane, msg::PlanePatch& out) noexcept {
+  const planes::PointMoments points = points_of(plane);
+  const planes::PlaneFit fit = planes::fit_plane(points);
+  if (!fit.valid) {
+    return;
+  }
+  Eigen::Vector3d normal = fit.normal_unit;
+  double d_m = fit.d_m;
+  if (normal.dot(plane.reference_normal) < 0.0) {
+    normal = -normal;
+    d_m = -d_m;
+  }
+  out.kind = plane.kind;
+  out.normal = normal;
+  out.d_m = d_m;
+  out.support = points.weight;
+  out.rmse_m = fit.rmse_m;
+  out.centroid_m = fit.centroid_m;
+  out.polygon_size = hull_on_plane(
+      normal, fit.centroid_m, {plane.frozen_polygon_m.data(), plane.frozen_polygon_size},
+      {plane.live_polygon_m.data(), plane.live_polygon_size}, out.polygon_m);
+}
+
+bool PlaneRegistry::differs(const msg::PlanePatch& a, const msg::PlanePatch& b) const noexcept {
+  if (a.normal.dot(b.normal) < cos_change_angle_ ||
+      std::abs(a.d_m - b.d_m) > config_.change_offset_m ||
+      std::abs(a.support - b.support) > config_.change_support_ratio * b.support ||
+      a.kind != b.kind) {
+    return true;
+  }
+  const Eigen::AlignedBox3d box_a = box_of(polygon_of(a));
+  const Eigen::AlignedBox3d box_b = box_of(polygon_of(b));
+  return (box_a.min() - box_b.min()).cwiseAbs().maxCoeff() > config_.change_extent_m ||
+         (box_a.max() - box_b.max()).cwiseAbs().maxCoeff() > config_.change_extent_m;
+}
+
+void PlaneRegistry::report(LivePlane& plane, msg::PlaneChangeKind change) noexcept {
+  combine(plane, plane.reported);
+  const Eigen::AlignedBox3d box = box_of(polygon_of(plane.reported));
+  plane.box_min_m = box.min();
+  plane.box_max_m = box.max();
+  emit(change, plane.reported);
+  if (change == msg::PlaneChangeKind::kAdded) {
+    ++counters_.added;
+  } else if (change == msg::PlaneChangeKind::kChanged) {
+    ++counters_.changed;
+  }
+}
+
+void PlaneRegistry::emit(msg::PlaneChangeKind change, const msg::PlanePatch& plane) noexcept {
+  // The capacity is what one update can produce (init()); more is a bug.
+  BLOCKMAP_CHECK_MSG(change_count_ < changes_.size(), "more plane changes than one update holds");
+  changes_[change_count_++] = msg::PlaneChange{change, plane};
+}
+
+void PlaneRegistry::finalize(LivePlane& plane) noexcept {
+  combine(plane, plane.reported);
+  emit(msg::PlaneChangeKind::kFinalized, plane.reported);
+  ++counters_.finalized;
+  store_final(plane.reported, points_of(plane));
+  plane.in_use = false;
+  --live_count_;
+}
+
+void PlaneRegistry::finalize_outside(const Eigen::AlignedBox2d& window_m) noexcept {
+  for (LivePlane& plane : live_) {
+    if (!plane.in_use || plane.reported.id == 0) {
+      continue;
+    }
+    const Eigen::AlignedBox2d extent(plane.box_min_m.head<2>(), plane.box_max_m.head<2>());
+    if (!extent.intersects(window_m)) {
+      finalize(plane);
+    }
+  }
+}
+
+void PlaneRegistry::finalize_all() noexcept {
+  for (LivePlane& plane : live_) {
+    if (plane.in_use && plane.reported.id != 0) {
+      finalize(plane);
+    }
+  }
+}
+
+}  // namespace blockmap::map

@@ -1,0 +1,255 @@
+#include "blockmap/map/voxel_window.hpp"
+
+#include <bit>
+#include <cmath>
+
+#include "blockmap/core/check.hpp"
+
+namespace blockmap::map {
+namespace {
+
+std::size_t table_slots(std::size_t max_samples) noexcept {
+  return std::bit_ceil(std::max<std::size_t>(2 * max_samples, 16));
+}
+
+std::int64_t floor_div(std::int64_t value, std::int64_t divisor) noexcept {
+  const std::int64_t quotient = value / divisor;
+  return (value % divisor != 0 && (value < 0) != (divisor < 0)) ? quotient - 1 : quotient;
+}
+
+// A whole number near `ratio`, or 0 when it is not one.
+std::int64_t whole(double ratio) noexcept {
+  const double rounded = std::round(ratio);
+  return std::abs(ratio - rounded) < 1e-6 ? static_cast<std::int64_t>(rounded) : 0;
+}
+
+}  // namespace
+
+std::string validate(const VoxelWindowConfig& config) {
+  if (!(config.voxel_size_m > 0.0) || !(config.tile_size_m > 0.0)) {
+    return "window: voxel_size_m and tile_size_m must be positive";
+  }
+  const std::int64_t voxels = whole(config.tile_size_m / config.voxel_size_m);
+  if (voxels == 0 || voxels % planes::kBlockEdge != 0) {
+    return "window: tile_size_m must be a whole number of 4-voxel blocks (voxel_size_m * 4)";
+  }
+  if (config.tiles_across < 3 || config.tiles_across % 2 == 0 || config.tiles_across > 255) {
+    return "window: tiles_across must be odd, from 3 to 255";
+  }
+  if (config.max_samples < 64 || config.max_samples >= (std::size_t{1} << 31)) {
+    return "window: max_samples must be from 64 to 2^31";
+  }
+  return {};
+}
+
+void VoxelWindow::init(Arena& arena, const VoxelWindowConfig& config) {
+  const std::string problem = validate(config);
+  BLOCKMAP_CHECK_MSG(problem.empty(), "an invalid window configuration reached init()");
+  config_ = config;
+  inverse_voxel_m_ = static_cast<float>(1.0 / config.voxel_size_m);
+  voxels_per_tile_ = whole(config.tile_size_m / config.voxel_size_m);
+  half_tiles_ = static_cast<std::int64_t>(config.tiles_across / 2);
+  slots_ = arena.allocate_array<TileSlot>(std::size_t{config.tiles_across} * config.tiles_across,
+                                          "window.tiles");
+  samples_ = arena.allocate_array<planes::VoxelSums>(config.max_samples, "window.samples");
+  next_ = arena.allocate_array<std::uint32_t>(config.max_samples, "window.chains");
+  const std::size_t slots = table_slots(config.max_samples);
+  table_ = arena.allocate_array<TableSlot>(slots, "window.index");
+  table_shift_ = 64U - static_cast<std::uint32_t>(std::countr_zero(slots));
+  chunk_ = arena.allocate_array<planes::VoxelSums>(kEvictionChunk, "window.eviction_chunk");
+  // Every sample is free: the free list runs through the pool in order.
+  for (std::size_t i = 0; i < next_.size(); ++i) {
+    next_[i] = i + 1 < next_.size() ? static_cast<std::uint32_t>(i + 1) : kNone;
+  }
+  free_first_ = 0;
+}
+
+std::size_t VoxelWindow::arena_bytes(const VoxelWindowConfig& config) noexcept {
+  constexpr std::size_t kSlack = 64;  // alignment of each array
+  return std::size_t{config.tiles_across} * config.tiles_across * sizeof(TileSlot) +
+         config.max_samples * (sizeof(planes::VoxelSums) + sizeof(std::uint32_t)) +
+         table_slots(config.max_samples) * sizeof(TableSlot) +
+         kEvictionChunk * sizeof(planes::VoxelSums) + 5 * kSlack;
+}
+
+std::int64_t VoxelWindow::tile_of_voxel(std::int64_t voxel) const noexcept {
+  return floor_div(voxel, voxels_per_tile_);
+}
+
+std::size_t VoxelWindow::slot_of_tile(std::int64_t tile_x, std::int64_t tile_y) const noexcept {
+  const auto across = static_cast<std::int64_t>(config_.tiles_across);
+  const std::int64_t column = ((tile_x % across) + across) % across;
+  const std::int64_t row = ((tile_y % across) + across) % across;
+  return static_cast<std::size_t>(row * across + column);
+}
+
+bool VoxelWindow::tile_inside(std::int64_t tile_x, std::int64_t tile_y) const noexcept {
+  return placed_ && std::abs(tile_x - centre_tile_x_) <= half_tiles_ &&
+         std::abs(tile_y - centre_tile_y_) <= half_tiles_;
+}
+
+Eigen::AlignedBox2d VoxelWindow::tile_bounds_m(std::int64_t tile_x,
+                                               std::int64_t tile_y) const noexcept {
+  const Eigen::Vector2d low(static_cast<double>(tile_x) * config_.tile_size_m,
+                            static_cast<double>(tile_y) * config_.tile_size_m);
+  return {low, low + Eigen::Vector2d::Constant(config_.tile_size_m)};
+}
+
+Eigen::AlignedBox2d VoxelWindow::bounds_m() const noexcept {
+  if (!placed_) {
+    return {};
+  }
+  Eigen::AlignedBox2d box =
+      tile_bounds_m(centre_tile_x_ - half_tiles_, centre_tile_y_ - half_tiles_);
+  box.extend(tile_bounds_m(centre_tile_x_ + half_tiles_, centre_tile_y_ + half_tiles_));
+  return box;
+}
+
+void VoxelWindow::recentre(const Eigen::Vector2d& position_m, EvictionSink& sink) noexcept {
+  const auto tile_x = static_cast<std::int64_t>(std::floor(position_m.x() / config_.tile_size_m));
+  const auto tile_y = static_cast<std::int64_t>(std::floor(position_m.y() / config_.tile_size_m));
+  if (placed_ && tile_x == centre_tile_x_ && tile_y == centre_tile_y_) {
+    return;
+  }
+  placed_ = true;
+  centre_tile_x_ = tile_x;
+  centre_tile_y_ = tile_y;
+  // A slot whose tile is no longer inside is the slot of a tile now inside (the ring): its
+  // samples leave first.
+  for (TileSlot& slot : slots_) {
+    if (slot.count > 0 && !tile_inside(slot.tile_x, slot.tile_y)) {
+      evict(slot, sink);
+    }
+  }
+}
+
+void VoxelWindow::evict(TileSlot& slot, EvictionSink& sink) noexcept {
+  const Eigen::AlignedBox2d bounds = tile_bounds_m(slot.tile_x, slot.tile_y);
+  std::size_t gathered = 0;
+  std::uint32_t i = slot.first;
+  while (i != kNone) {
+    chunk_[gathered++] = samples_[i];
+    erase_key(samples_[i].key);
+    samples_[i].key = planes::kNoCell;
+    const std::uint32_t after = next_[i];
+    next_[i] = free_first_;  // back onto the free list
+    free_first_ = i;
+    i = after;
+    if (gathered == chunk_.size() || i == kNone) {
+      sink.on_evicted(EvictedTile{bounds, config_.voxel_size_m, chunk_.first(gathered)});
+      gathered = 0;
+    }
+  }
+  counters_.tiles_evicted += 1;
+  counters_.samples_evicted += slot.count;
+  sample_count_ -= slot.count;
+  slot = TileSlot{};
+}
+
+std::size_t VoxelWindow::home_of(planes::CellKey key) const noexcept {
+  return static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> table_shift_);
+}
+
+std::uint32_t VoxelWindow::find_or_create(planes::CellKey key, TileSlot& slot) noexcept {
+  const std::size_t mask = table_.size() - 1;
+  std::size_t at = home_of(key);
+  while (table_[at].key != planes::kNoCell) {
+    if (table_[at].key == key) {
+      return table_[at].sample;
+    }
+    at = (at + 1) & mask;
+  }
+  if (free_first_ == kNone) {
+    return kNone;
+  }
+  const std::uint32_t sample = free_first_;
+  free_first_ = next_[sample];
+  samples_[sample] = planes::VoxelSums{};
+  samples_[sample].key = key;
+  next_[sample] = slot.first;
+  slot.first = sample;
+  ++slot.count;
+  table_[at] = TableSlot{key, sample};
+  ++sample_count_;
+  counters_.peak_samples = std::max(counters_.peak_samples, sample_count_);
+  return sample;
+}
+
+void VoxelWindow::erase_key(planes::CellKey key) noexcept {
+  const std::size_t mask = table_.size() - 1;
+  std::size_t hole = home_of(key);
+  while (table_[hole].key != key) {
+    hole = (hole + 1) & mask;
+  }
+  // Backward shift: every later key of the run whose home is not between the hole and it
+  // moves into the hole, so that lookups never meet a gap before their key.
+  std::size_t at = (hole + 1) & mask;
+  while (table_[at].key != planes::kNoCell) {
+    const std::size_t home = home_of(table_[at].key);
+    const bool stays = hole <= at ? (hole < home && home <= at) : (hole < home || home <= at);
+    if (!stays) {
+      table_[hole] = table_[at];
+      hole = at;
+    }
+    at = (at + 1) & mask;
+  }
+  table_[hole] = TableSlot{};
+}
+
+void VoxelWindow::add_point(const Eigen::Vector3f& point_m) noexcept {
+  if (!point_m.allFinite()) {
+    ++counters_.points_non_finite;
+    return;
+  }
+  const Eigen::Vector3f scaled = point_m * inverse_voxel_m_;
+  const auto x = static_cast<std::int64_t>(std::floor(scaled.x()));
+  const auto y = static_cast<std::int64_t>(std::floor(scaled.y()));
+  const auto z = static_cast<std::int64_t>(std::floor(scaled.z()));
+  const std::int64_t tile_x = tile_of_voxel(x);
+  const std::int64_t tile_y = tile_of_voxel(y);
+  if (!tile_inside(tile_x, tile_y) || !planes::cell_in_range(x, y, z)) {
+    ++counters_.points_outside;
+    return;
+  }
+  TileSlot& slot = slots_[slot_of_tile(tile_x, tile_y)];
+  if (slot.count == 0) {
+    slot.tile_x = tile_x;
+    slot.tile_y = tile_y;
+  }
+  const std::uint32_t sample = find_or_create(planes::pack_cell(x, y, z), slot);
+  if (sample == kNone) {
+    ++counters_.points_dropped_full;
+    return;
+  }
+  // The detector's layout: sums about the voxel's centre, in metres.
+  // The detector's layout: sums about the voxel's centre (computed as VoxelGrid::centre_m
+  // does), in metres.
+  const Eigen::Vector3f centre_m =
+      ((Eigen::Vector3d(static_cast<double>(x), static_cast<double>(y), static_cast<double>(z))
+            .array() +
+        0.5) *
+       config_.voxel_size_m)
+          .matrix()
+          .cast<float>();
+  const Eigen::Vector3f local = point_m - centre_m;
+  planes::VoxelSums& sums = samples_[sample];
+  ++sums.point_count;
+  sums.sum_m[0] += local.x();
+  sums.sum_m[1] += local.y();
+  sums.sum_m[2] += local.z();
+  sums.sum_outer_m2[0] += local.x() * local.x();
+  sums.sum_outer_m2[1] += local.x() * local.y();
+  sums.sum_outer_m2[2] += local.x() * local.z();
+  sums.sum_outer_m2[3] += local.y() * local.y();
+  sums.sum_outer_m2[4] += local.y() * local.z();
+  sums.sum_outer_m2[5] += local.z() * local.z();
+  ++counters_.points_added;
+}
+
+void VoxelWindow::add_points(std::span<const Eigen::Vector3f> points_m) noexcept {
+  for (const Eigen::Vector3f& point : points_m) {
+    add_point(point);
+  }
+}
+
+}  // namespace blockmap::map

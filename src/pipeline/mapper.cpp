@@ -1,0 +1,418 @@
+#include "blockmap/pipeline/mapper.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "blockmap/core/check.hpp"
+
+namespace blockmap::pipeline {
+namespace {
+
+double wrap_angle(double angle_rad) noexcept {
+  return std::remainder(angle_rad, 2.0 * std::numbers::pi);
+}
+
+localize::Pose3 interpolated(const localize::Pose3& a, const localize::Pose3& b,
+                             TimestampNs stamp_ns) noexcept {
+  const double span_s = seconds_from_ns(b.stamp_ns - a.stamp_ns);
+  const double f = span_s > 0.0 ? seconds_from_ns(stamp_ns - a.stamp_ns) / span_s : 0.0;
+  const auto mix = [f](double x, double y) { return x + f * (y - x); };
+  localize::Pose3 out;
+  out.stamp_ns = stamp_ns;
+  out.x_m = mix(a.x_m, b.x_m);
+  out.y_m = mix(a.y_m, b.y_m);
+  out.z_m = mix(a.z_m, b.z_m);
+  out.roll_rad = mix(a.roll_rad, b.roll_rad);
+  out.pitch_rad = mix(a.pitch_rad, b.pitch_rad);
+  out.yaw_rad = wrap_angle(a.yaw_rad + f * wrap_angle(b.yaw_rad - a.yaw_rad));
+  return out;
+}
+
+// The detector's configuration inside the mapper: it holds what the window holds.
+planes::PlanesConfig detector_config(const MapperConfig& config) noexcept {
+  planes::PlanesConfig planes = config.planes;
+  planes.max_samples = config.window.max_samples;
+  planes.max_blocks = std::min(planes.max_blocks, planes.max_samples);
+  return planes;
+}
+
+map::PlaneRegistryConfig registry_config(const MapperConfig& config) noexcept {
+  map::PlaneRegistryConfig registry = config.registry;
+  registry.max_detected_planes = config.planes.max_planes;
+  return registry;
+}
+
+}  // namespace
+
+std::string validate(const MapperConfig& config) {
+  if (std::string problem = localize::validate(config.localizer); !problem.empty()) {
+    return problem;
+  }
+  if (std::string problem = map::validate(config.window); !problem.empty()) {
+    return problem;
+  }
+  if (std::string problem = planes::validate(detector_config(config)); !problem.empty()) {
+    return problem;
+  }
+  if (std::string problem = map::validate(registry_config(config)); !problem.empty()) {
+    return problem;
+  }
+  if (std::abs(config.window.voxel_size_m - config.planes.sample_size_m) > 1e-9) {
+    return "mapper: window.voxel_size_m must equal planes.sample_size_m";
+  }
+  if (config.laser_count > kMaxLasers) {
+    return "mapper: at most 4 lasers";
+  }
+  if (!(config.scan_plane_angle_deg >= 0.0 && config.scan_plane_angle_deg < 90.0) ||
+      !(config.scan_plane_distance_m >= 0.0) || !(config.scan_plane_spacing_m > 0.0)) {
+    return "mapper: scan_plane_angle_deg must be in [0, 90), the scan plane distances >= 0";
+  }
+  if (!(config.extract_every_s > 0.0) || !(config.reorder_window_s >= 0.0)) {
+    return "mapper: extract_every_s must be positive and reorder_window_s not negative";
+  }
+  if (config.reorder_capacity < 1 || config.scan_queue_capacity < 1 ||
+      (config.pose_source == PoseSource::kExternal && config.max_external_poses < 2)) {
+    return "mapper: the reorder buffer and the scan queue need room (and 2 external poses)";
+  }
+  if (!(config.projection.min_range_m >= 0.0) ||
+      !(config.projection.max_range_m > config.projection.min_range_m)) {
+    return "mapper: projection ranges must satisfy 0 <= min_range_m < max_range_m";
+  }
+  return {};
+}
+
+void Mapper::init(Arena& arena, const MapperConfig& config) {
+  const std::string problem = validate(config);
+  BLOCKMAP_CHECK_MSG(problem.empty(), "an invalid mapper configuration reached init()");
+  config_ = config;
+  localizer_.init(arena, config.localizer);
+  for (std::size_t i = 0; i < config.laser_count; ++i) {
+    projectors_[i] = map::ScanProjector(config.laser_mounts[i], config.projection);
+  }
+  window_.init(arena, config.window);
+  detector_.init(arena, detector_config(config));
+  registry_.init(arena, registry_config(config));
+  pending_ = arena.allocate_array<Pending>(config.reorder_capacity, "mapper.reorder");
+  if (config.pose_source == PoseSource::kExternal) {
+    poses_ = arena.allocate_array<localize::Pose3>(config.max_external_poses, "mapper.poses");
+  }
+  scans_ = arena.allocate_array<QueuedScan>(config.scan_queue_capacity, "mapper.scans");
+  points_ = arena.allocate_array<Eigen::Vector3f>(msg::kMaxLaserBeams, "mapper.points");
+  cos_scan_plane_angle_ = std::cos(config.scan_plane_angle_deg * std::numbers::pi / 180.0);
+  sin_scan_plane_angle_ = std::sin(config.scan_plane_angle_deg * std::numbers::pi / 180.0);
+}
+
+std::size_t Mapper::arena_bytes(const MapperConfig& config) noexcept {
+  constexpr std::size_t kSlack = 64;
+  return localize::Localizer::arena_bytes(config.localizer) +
+         map::VoxelWindow::arena_bytes(config.window) +
+         planes::PlaneDetector::arena_budget_bytes(detector_config(config)) +
+         map::PlaneRegistry::arena_bytes(registry_config(config)) +
+         config.reorder_capacity * sizeof(Pending) +
+         (config.pose_source == PoseSource::kExternal ? config.max_external_poses : 0) *
+             sizeof(localize::Pose3) +
+         config.scan_queue_capacity * sizeof(QueuedScan) +
+         msg::kMaxLaserBeams * sizeof(Eigen::Vector3f) + 4 * kSlack;
+}
+
+// --- Messages in --------------------------------------------------------------------------
+
+void Mapper::on_base(const msg::OdometrySample& odometry, const msg::ImuSample& imu) noexcept {
+  Pending message;
+  message.stamp_ns = odometry.header.stamp_ns;
+  message.kind = Kind::kBase;
+  message.odometry = odometry;
+  message.imu = imu;
+  enqueue(message);
+}
+
+void Mapper::on_fix(const localize::GpsObservation& fix, double up_m) noexcept {
+  Pending message;
+  message.stamp_ns = fix.stamp_ns;
+  message.kind = Kind::kFix;
+  message.fix = fix;
+  message.up_m = up_m;
+  enqueue(message);
+}
+
+void Mapper::on_pose(const localize::Pose3& pose) noexcept {
+  Pending message;
+  message.stamp_ns = pose.stamp_ns;
+  message.kind = Kind::kPose;
+  message.pose = pose;
+  enqueue(message);
+}
+
+bool Mapper::on_scan(std::size_t laser, const msg::LaserScan& scan) noexcept {
+  ++counters_.scans;
+  if (laser >= config_.laser_count) {
+    ++counters_.scans_unknown_laser;
+    return false;
+  }
+  if (scan_count_ == scans_.size()) {
+    ++counters_.scans_refused_full;
+    return false;
+  }
+  scans_[scan_count_].laser = laser;
+  scans_[scan_count_].scan = scan;
+  ++scan_count_;
+  return true;
+}
+
+void Mapper::enqueue(const Pending& message) noexcept {
+  if (released_any_ && message.stamp_ns < released_ns_) {
+    ++counters_.messages_late;  // the localizer has moved past it
+    return;
+  }
+  if (pending_count_ == pending_.size()) {
+    ++counters_.reorder_forced;
+    apply(pending_[0]);
+    std::move(pending_.begin() + 1, pending_.begin() + static_cast<std::ptrdiff_t>(pending_count_),
+              pending_.begin());
+    --pending_count_;
+  }
+  // Insertion from the back: messages arrive nearly in order.
+  std::size_t at = pending_count_;
+  while (at > 0 && pending_[at - 1].stamp_ns > message.stamp_ns) {
+    pending_[at] = pending_[at - 1];
+    --at;
+  }
+  pending_[at] = message;
+  ++pending_count_;
+  newest_in_ns_ = std::max(newest_in_ns_, message.stamp_ns);
+}
+
+void Mapper::release_due() noexcept {
+  const TimestampNs due_ns = newest_in_ns_ - ns_from_seconds(config_.reorder_window_s);
+  std::size_t released = 0;
+  while (released < pending_count_ && (ending_ || pending_[released].stamp_ns <= due_ns)) {
+    apply(pending_[released]);
+    ++released;
+  }
+  if (released > 0) {
+    std::move(pending_.begin() + static_cast<std::ptrdiff_t>(released),
+              pending_.begin() + static_cast<std::ptrdiff_t>(pending_count_), pending_.begin());
+    pending_count_ -= released;
+  }
+}
+
+void Mapper::apply(const Pending& message) noexcept {
+  released_ns_ = message.stamp_ns;
+  released_any_ = true;
+  switch (message.kind) {
+    case Kind::kBase:
+      ++counters_.base_samples;
+      localizer_.on_base(message.odometry, message.imu);
+      break;
+    case Kind::kFix:
+      ++counters_.fixes;
+      switch (localizer_.on_fix(message.fix, message.up_m)) {
+        case localize::GpsOutcome::kRejected:
+          ++counters_.fixes_rejected;
+          break;
+        case localize::GpsOutcome::kRecovered:
+          ++counters_.fixes_recovered;
+          break;
+        default:
+          break;
+      }
+      break;
+    case Kind::kPose:
+      ++counters_.poses;
+      if (config_.pose_source == PoseSource::kExternal) {
+        if (pose_count_ == poses_.size()) {
+          pose_first_ = (pose_first_ + 1) % poses_.size();
+          --pose_count_;
+        }
+        poses_[(pose_first_ + pose_count_) % poses_.size()] = message.pose;
+        ++pose_count_;
+      }
+      break;
+  }
+}
+
+// --- Poses ---------------------------------------------------------------------------------
+
+bool Mapper::pose_horizon(TimestampNs& out) const noexcept {
+  if (config_.pose_source == PoseSource::kExternal) {
+    if (pose_count_ == 0) {
+      return false;
+    }
+    out = poses_[(pose_first_ + pose_count_ - 1) % poses_.size()].stamp_ns;
+    return true;
+  }
+  if (!localizer_.filter().started()) {
+    return false;
+  }
+  out = localizer_.filter().last_stamp_ns();
+  return true;
+}
+
+bool Mapper::pose_at(TimestampNs stamp_ns, localize::Pose3& out) const noexcept {
+  if (config_.pose_source == PoseSource::kLocalizer) {
+    return localizer_.pose_at(stamp_ns, out);
+  }
+  for (std::size_t k = 1; k < pose_count_; ++k) {
+    const localize::Pose3& a = poses_[(pose_first_ + k - 1) % poses_.size()];
+    const localize::Pose3& b = poses_[(pose_first_ + k) % poses_.size()];
+    if (a.stamp_ns <= stamp_ns && stamp_ns <= b.stamp_ns) {
+      out = interpolated(a, b, stamp_ns);
+      return true;
+    }
+  }
+  return false;
+}
+
+std::size_t Mapper::drain_final_poses(std::span<localize::Pose3> out) noexcept {
+  return config_.pose_source == PoseSource::kLocalizer ? localizer_.drain_final(out) : 0;
+}
+
+std::size_t Mapper::smoothed_poses(std::span<localize::Pose3> out) const noexcept {
+  return config_.pose_source == PoseSource::kLocalizer ? localizer_.smoothed_window(out) : 0;
+}
+
+// --- Scans ---------------------------------------------------------------------------------
+
+std::ptrdiff_t Mapper::next_ready_scan() const noexcept {
+  TimestampNs horizon_ns = 0;
+  const bool have_poses = pose_horizon(horizon_ns);
+  std::ptrdiff_t oldest = -1;
+  for (std::size_t i = 0; i < scan_count_; ++i) {
+    const msg::LaserScan& scan = scans_[i].scan;
+    const bool covered = have_poses && map::ScanProjector::last_beam_stamp_ns(scan) <= horizon_ns;
+    if ((covered || ending_) &&
+        (oldest < 0 ||
+         scan.header.stamp_ns < scans_[static_cast<std::size_t>(oldest)].scan.header.stamp_ns)) {
+      oldest = static_cast<std::ptrdiff_t>(i);
+    }
+  }
+  return oldest;
+}
+
+void Mapper::remove_scan(std::size_t index) noexcept {
+  for (std::size_t i = index; i + 1 < scan_count_; ++i) {
+    scans_[i] = scans_[i + 1];
+  }
+  --scan_count_;
+}
+
+void Mapper::record_laser_position(std::size_t laser, const localize::Pose3& pose) noexcept {
+  LaserPath& path = laser_paths_[laser];
+  Eigen::Vector3d origin_m;
+  projectors_[laser].scan_plane(pose, origin_m, path.normal);
+  const Eigen::Vector3d moved_m = origin_m - path.last_origin_m;
+  if (moved_m.norm() < config_.scan_plane_spacing_m) {
+    return;
+  }
+  path.last_origin_m = origin_m;
+  // Only a laser moving within its own scan plane lays a sheet (a level laser, or a vertical
+  // one looking along the way); one sweeping across the way paints a new slice each scan.
+  if (std::abs(path.normal.dot(moved_m.normalized())) > sin_scan_plane_angle_) {
+    return;
+  }
+  path.origins_m[path.next] = origin_m;
+  path.next = (path.next + 1) % path.origins_m.size();
+  path.count = std::min(path.count + 1, path.origins_m.size());
+}
+
+void Mapper::project(const QueuedScan& queued) noexcept {
+  const msg::LaserScan& scan = queued.scan;
+  const TimestampNs first_ns = scan.header.stamp_ns;
+  const TimestampNs last_ns = map::ScanProjector::last_beam_stamp_ns(scan);
+  localize::Pose3 first;
+  localize::Pose3 last;
+  TimestampNs horizon_ns = 0;
+  const bool have_poses = pose_horizon(horizon_ns);
+  // At the end of input a scan may reach a few milliseconds past the last pose: it takes the
+  // last one for those beams rather than being lost.
+  const bool found = have_poses && pose_at(std::min(first_ns, horizon_ns), first) &&
+                     pose_at(std::min(last_ns, horizon_ns), last);
+  if (!found) {
+    ++counters_.scans_without_pose;
+    return;
+  }
+  // The window follows the robot: tiles it leaves behind go to the registry as they leave.
+  window_.recentre(Eigen::Vector2d(first.x_m, first.y_m), registry_);
+  record_laser_position(queued.laser, first);
+  const std::size_t count = projectors_[queued.laser].project(scan, first, last, points_);
+  window_.add_points(points_.first(count));
+  if (point_sink_ != nullptr) {
+    point_sink_->on_points(points_.first(count));
+  }
+  counters_.points += count;
+  ++counters_.scans_projected;
+  last_scan_ns_ = std::max(last_scan_ns_, last_ns);
+}
+
+// --- Planes --------------------------------------------------------------------------------
+
+void Mapper::extract(TimestampNs stamp_ns) noexcept {
+  ++counters_.extractions;
+  registry_.finalize_outside(window_.bounds_m());
+  detector_.clear();
+  window_.for_each_sample(
+      [this](const planes::VoxelSums& sample) { detector_.add_sample(sample); });
+  // The lasers' own scan planes are not surfaces (PlaneExclusion).
+  std::array<planes::PlaneExclusion, kMaxLasers> exclusions{};
+  std::size_t exclusion_count = 0;
+  for (std::size_t laser = 0; laser < config_.laser_count; ++laser) {
+    const LaserPath& path = laser_paths_[laser];
+    if (path.count > 0) {
+      exclusions[exclusion_count++] = {std::span(path.origins_m).first(path.count), path.normal,
+                                       cos_scan_plane_angle_, config_.scan_plane_distance_m};
+    }
+  }
+  detector_.set_exclusions(std::span(exclusions).first(exclusion_count));
+  const std::span<const msg::PlanePatch> planes = detector_.detect();
+  counters_.peak_blocks = std::max(counters_.peak_blocks, detector_.voxels().block_count());
+  counters_.scan_planes_rejected += detector_.stats().planes_excluded;
+  registry_.update(planes, detector_.plane_moments());
+  update_stamp_ns_ = stamp_ns;
+}
+
+bool Mapper::step() noexcept {
+  registry_.begin_update();
+  changes_ = {};
+  release_due();
+  for (std::ptrdiff_t next = next_ready_scan(); next >= 0; next = next_ready_scan()) {
+    const auto index = static_cast<std::size_t>(next);
+    const TimestampNs stamp_ns = scans_[index].scan.header.stamp_ns;
+    if (!extraction_scheduled_) {
+      extraction_scheduled_ = true;
+      next_extraction_ns_ = stamp_ns + ns_from_seconds(config_.extract_every_s);
+    }
+    if (stamp_ns >= next_extraction_ns_ && window_.placed()) {
+      // Every scan before this one is in: the planes of the last period.
+      extract(next_extraction_ns_);
+      while (next_extraction_ns_ <= stamp_ns) {  // a gap in the scans is one extraction
+        next_extraction_ns_ += ns_from_seconds(config_.extract_every_s);
+      }
+      changes_ = registry_.changes();
+      return true;
+    }
+    project(scans_[index]);
+    remove_scan(index);
+  }
+  if (!ending_ || pending_count_ > 0) {
+    return false;
+  }
+  if (!final_extracted_) {
+    final_extracted_ = true;
+    if (window_.placed()) {
+      extract(last_scan_ns_);
+      changes_ = registry_.changes();
+      return true;
+    }
+  }
+  if (!finalized_) {
+    finalized_ = true;
+    registry_.finalize_all();
+    update_stamp_ns_ = last_scan_ns_;
+    changes_ = registry_.changes();
+    return true;
+  }
+  return false;
+}
+
+}  // namespace blockmap::pipeline

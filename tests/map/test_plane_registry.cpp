@@ -1,0 +1,229 @@
+// The plane registry: ids that stay over detections, changes reported once, planes frozen as
+// their tiles leave, finalized when their region has left, merged, retracted, reopened.
+#include <gtest/gtest.h>
+
+#include <vector>
+
+#include "blockmap/core/arena.hpp"
+#include "blockmap/map/plane_registry.hpp"
+#include "blockmap/planes/voxel_grid.hpp"
+
+namespace blockmap::map {
+namespace {
+
+// A wall on the plane y = y_m, from x0 to x1, 0 to 4 m high, as the detector reports it:
+// the plane, its polygon, and the moments of points every 0.1 m over it.
+struct Detected {
+  msg::PlanePatch plane;
+  planes::PointMoments moments;
+};
+
+Detected wall(double x0_m, double x1_m, double y_m, double z1_m = 4.0) {
+  Detected d;
+  for (double x = x0_m; x <= x1_m + 1e-9; x += 0.1) {
+    for (double z = 0.0; z <= z1_m + 1e-9; z += 0.1) {
+      d.moments.add(Eigen::Vector3d(x, y_m, z));
+    }
+  }
+  d.plane.kind = msg::PlaneKind::kWall;
+  d.plane.normal = Eigen::Vector3d::UnitY();
+  d.plane.d_m = y_m;
+  d.plane.support = d.moments.weight;
+  d.plane.rmse_m = 0.01;
+  d.plane.centroid_m = d.moments.mean();
+  d.plane.polygon_size = 4;
+  d.plane.polygon_m[0] = {x0_m, y_m, 0.0};
+  d.plane.polygon_m[1] = {x1_m, y_m, 0.0};
+  d.plane.polygon_m[2] = {x1_m, y_m, z1_m};
+  d.plane.polygon_m[3] = {x0_m, y_m, z1_m};
+  return d;
+}
+
+struct Registry {
+  explicit Registry(const PlaneRegistryConfig& config = {})
+      : arena(PlaneRegistry::arena_bytes(config)) {
+    registry.init(arena, config);
+    arena.seal();
+  }
+  // One detection with these planes; the changes it made.
+  std::vector<msg::PlaneChange> detect(const std::vector<Detected>& planes) {
+    registry.begin_update();
+    std::vector<msg::PlanePatch> patches;
+    std::vector<planes::PointMoments> moments;
+    for (const Detected& d : planes) {
+      patches.push_back(d.plane);
+      moments.push_back(d.moments);
+    }
+    registry.update(patches, moments);
+    return {registry.changes().begin(), registry.changes().end()};
+  }
+  Arena arena;
+  PlaneRegistry registry;
+};
+
+std::size_t count(const std::vector<msg::PlaneChange>& changes, msg::PlaneChangeKind kind) {
+  std::size_t n = 0;
+  for (const msg::PlaneChange& c : changes) {
+    n += c.change == kind ? 1U : 0U;
+  }
+  return n;
+}
+
+TEST(PlaneRegistry, AddsOnceThenReportsOnlyRealChangesUnderTheSameId) {
+  Registry r;
+  auto changes = r.detect({wall(0, 5, 10)});
+  ASSERT_EQ(changes.size(), 1u);
+  EXPECT_EQ(changes[0].change, msg::PlaneChangeKind::kAdded);
+  const std::uint32_t id = changes[0].plane.id;
+  EXPECT_NE(id, 0u);
+  EXPECT_NEAR(changes[0].plane.d_m, 10.0, 1e-9);
+  // The same plane again: nothing to say.
+  EXPECT_TRUE(r.detect({wall(0, 5, 10)}).empty());
+  // It grew: changed, same id, bigger extent.
+  changes = r.detect({wall(0, 8, 10)});
+  ASSERT_EQ(changes.size(), 1u);
+  EXPECT_EQ(changes[0].change, msg::PlaneChangeKind::kChanged);
+  EXPECT_EQ(changes[0].plane.id, id);
+  EXPECT_GT(changes[0].plane.support, wall(0, 5, 10).moments.weight);
+  // A second wall elsewhere is a second plane.
+  changes = r.detect({wall(0, 8, 10), wall(0, 5, 30)});
+  ASSERT_EQ(count(changes, msg::PlaneChangeKind::kAdded), 1u);
+  EXPECT_NE(changes[0].plane.id, id);
+  EXPECT_EQ(r.registry.live_count(), 2u);
+}
+
+TEST(PlaneRegistry, FinalizesPlanesWhoseRegionLeftTheWindow) {
+  Registry r;
+  static_cast<void>(r.detect({wall(0, 5, 10), wall(50, 55, 10)}));
+  r.registry.begin_update();
+  r.registry.finalize_outside(Eigen::AlignedBox2d(Eigen::Vector2d(20, 0), Eigen::Vector2d(80, 40)));
+  ASSERT_EQ(r.registry.changes().size(), 1u);
+  EXPECT_EQ(r.registry.changes()[0].change, msg::PlaneChangeKind::kFinalized);
+  EXPECT_NEAR(r.registry.changes()[0].plane.centroid_m.x(), 2.5, 1e-6);
+  ASSERT_EQ(r.registry.final_planes().size(), 1u);
+  EXPECT_EQ(r.registry.live_count(), 1u);
+  r.registry.begin_update();
+  r.registry.finalize_all();
+  EXPECT_EQ(r.registry.final_planes().size(), 2u);
+  EXPECT_EQ(r.registry.live_count(), 0u);
+}
+
+TEST(PlaneRegistry, KeepsThePointsOfTilesThatLeaveAndCountsThemOnce) {
+  Registry r;
+  static_cast<void>(r.detect({wall(0, 10, 10)}));
+  // The tile x in [0, 5) leaves with samples on the wall (one point each at 0.1 m spacing,
+  // as the window keeps them: sums about the voxel's centre).
+  std::vector<planes::VoxelSums> samples;
+  for (double x = 0.05; x < 5.0; x += 0.2) {
+    for (double z = 0.05; z < 4.0; z += 0.2) {
+      const Eigen::Vector3d p(x, 10.0, z);
+      planes::VoxelSums sums;
+      const auto cx = static_cast<std::int64_t>(std::floor(p.x() / 0.2));
+      const auto cy = static_cast<std::int64_t>(std::floor(p.y() / 0.2));
+      const auto cz = static_cast<std::int64_t>(std::floor(p.z() / 0.2));
+      sums.key = planes::pack_cell(cx, cy, cz);
+      sums.point_count = 1;
+      const Eigen::Vector3d centre =
+          (planes::unpack_cell(sums.key).cast<double>().array() + 0.5) * 0.2;
+      const Eigen::Vector3f local = (p - centre).cast<float>();
+      sums.sum_m[0] = local.x();
+      sums.sum_m[1] = local.y();
+      sums.sum_m[2] = local.z();
+      samples.push_back(sums);
+    }
+  }
+  // Samples off the wall (a tree 2 m in front of it) stay out.
+  planes::VoxelSums tree;
+  tree.key = planes::pack_cell(10, 40, 10);
+  tree.point_count = 5;
+  samples.push_back(tree);
+  r.registry.begin_update();
+  r.registry.on_evicted(VoxelWindow::EvictedTile{
+      Eigen::AlignedBox2d(Eigen::Vector2d(0, 0), Eigen::Vector2d(5, 20)), 0.2, samples});
+  EXPECT_EQ(r.registry.counters().samples_frozen, samples.size() - 1);
+  // The next detection sees only what is left in the window: x from 5 to 10.
+  auto changes = r.detect({wall(5, 10, 10)});
+  ASSERT_EQ(changes.size(), 1u);
+  EXPECT_EQ(changes[0].change, msg::PlaneChangeKind::kChanged);
+  const double expected = wall(5, 10, 10).moments.weight + static_cast<double>(samples.size() - 1);
+  EXPECT_NEAR(changes[0].plane.support, expected, 1e-6);
+  // Its extent is still the whole wall.
+  double x_min = 1e9;
+  for (std::size_t i = 0; i < changes[0].plane.polygon_size; ++i) {
+    x_min = std::min(x_min, changes[0].plane.polygon_m[i].x());
+  }
+  EXPECT_LT(x_min, 0.2);
+  EXPECT_NEAR(changes[0].plane.d_m, 10.0, 0.01);
+}
+
+TEST(PlaneRegistry, ADetectionSpanningTwoPlanesMakesThemOne) {
+  Registry r;
+  const auto first = r.detect({wall(0, 4, 10), wall(7, 11, 10)});
+  ASSERT_EQ(first.size(), 2u);
+  const auto changes = r.detect({wall(0, 11, 10)});
+  EXPECT_EQ(count(changes, msg::PlaneChangeKind::kRemoved), 1u);
+  EXPECT_EQ(count(changes, msg::PlaneChangeKind::kChanged), 1u);
+  EXPECT_EQ(r.registry.live_count(), 1u);
+  EXPECT_EQ(r.registry.counters().merged, 1u);
+}
+
+TEST(PlaneRegistry, RetractsAPlaneNoLongerSeenAndFinalizesOneThatKeptPoints) {
+  PlaneRegistryConfig config;
+  config.retract_after_misses = 2;
+  Registry r(config);
+  static_cast<void>(r.detect({wall(0, 4, 10)}));
+  EXPECT_TRUE(r.detect({}).empty());
+  const auto changes = r.detect({});
+  ASSERT_EQ(changes.size(), 1u);
+  EXPECT_EQ(changes[0].change, msg::PlaneChangeKind::kRemoved);
+  EXPECT_EQ(r.registry.counters().retracted, 1u);
+  EXPECT_TRUE(r.registry.final_planes().empty());
+}
+
+TEST(PlaneRegistry, AFinalPlaneSeenAgainIsReopenedNotDuplicated) {
+  Registry r;
+  const auto added = r.detect({wall(0, 5, 10)});
+  r.registry.begin_update();
+  r.registry.finalize_outside(
+      Eigen::AlignedBox2d(Eigen::Vector2d(50, 50), Eigen::Vector2d(60, 60)));
+  ASSERT_EQ(r.registry.final_planes().size(), 1u);
+  // The robot comes back: the same wall, a little more of it.
+  const auto changes = r.detect({wall(0, 6, 10)});
+  ASSERT_EQ(changes.size(), 1u);
+  EXPECT_EQ(changes[0].change, msg::PlaneChangeKind::kChanged);
+  EXPECT_EQ(changes[0].plane.id, added[0].plane.id);
+  EXPECT_TRUE(r.registry.final_planes().empty());
+  EXPECT_EQ(r.registry.counters().reopened, 1u);
+}
+
+TEST(PlaneRegistry, WhenFullTheSmallestLivePlaneMakesRoomOrTheNewOneIsRefused) {
+  PlaneRegistryConfig config;
+  config.max_live_planes = 2;
+  Registry r(config);
+  static_cast<void>(r.detect({wall(0, 5, 10), wall(0, 2, 20)}));
+  // A bigger one: the smallest (x 0-2 at y 20) is finalized early.
+  auto changes = r.detect({wall(0, 5, 10), wall(0, 2, 20), wall(0, 9, 30)});
+  EXPECT_EQ(count(changes, msg::PlaneChangeKind::kFinalized), 1u);
+  EXPECT_EQ(count(changes, msg::PlaneChangeKind::kAdded), 1u);
+  EXPECT_EQ(r.registry.counters().finalized_early, 1u);
+  // A smaller one than both: refused.
+  changes = r.detect({wall(0, 5, 10), wall(0, 9, 30), wall(0, 1, 40)});
+  EXPECT_EQ(count(changes, msg::PlaneChangeKind::kAdded), 0u);
+  EXPECT_EQ(r.registry.counters().refused_full, 1u);
+}
+
+TEST(PlaneRegistry, RefusesAnUnusableConfiguration) {
+  EXPECT_EQ(validate(PlaneRegistryConfig{}), "");
+  PlaneRegistryConfig config;
+  config.max_live_planes = 0;
+  EXPECT_NE(validate(config), "");
+  config = PlaneRegistryConfig{};
+  config.retract_after_misses = 0;
+  EXPECT_NE(validate(config), "");
+  config = PlaneRegistryConfig{};
+  config.band_m = 0.5;  // above max_band_m
+  EXPECT_NE(validate(config), "");
+}
+
+}  // namespace
+}  // namespace blockmap::map

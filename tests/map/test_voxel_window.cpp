@@ -1,0 +1,155 @@
+// The sliding window: samples keep the detector's sums, the ring scrolls with the robot, tiles
+// that leave are handed over whole and their samples come back to the pool.
+#include <gtest/gtest.h>
+
+#include <vector>
+
+#include "blockmap/core/arena.hpp"
+#include "blockmap/map/voxel_window.hpp"
+
+namespace blockmap::map {
+namespace {
+
+struct CollectingSink final : VoxelWindow::EvictionSink {
+  void on_evicted(const VoxelWindow::EvictedTile& tile) noexcept override {
+    tiles.push_back(tile.bounds_m);
+    for (const planes::VoxelSums& sums : tile.samples) {
+      points += sums.point_count;
+    }
+    samples += tile.samples.size();
+  }
+  std::vector<Eigen::AlignedBox2d> tiles;
+  std::size_t samples = 0;
+  std::size_t points = 0;
+};
+
+struct Window {
+  explicit Window(const VoxelWindowConfig& config) : arena(VoxelWindow::arena_bytes(config)) {
+    window.init(arena, config);
+    arena.seal();
+  }
+  Arena arena;
+  VoxelWindow window;
+};
+
+VoxelWindowConfig small_config() {
+  VoxelWindowConfig config;
+  config.voxel_size_m = 0.2;
+  config.tile_size_m = 3.2;
+  config.tiles_across = 3;
+  config.max_samples = 256;
+  return config;
+}
+
+TEST(VoxelWindow, AcceptsNothingUntilPlacedThenKeepsSumsAboutTheVoxelCentre) {
+  Window w(small_config());
+  CollectingSink sink;
+  w.window.add_point(Eigen::Vector3f(0.1f, 0.1f, 0.1f));
+  EXPECT_EQ(w.window.counters().points_outside, 1u);
+  w.window.recentre(Eigen::Vector2d(1.0, 1.0), sink);
+  EXPECT_TRUE(sink.tiles.empty()) << "placing the window evicts nothing";
+  // Two points in the voxel [0, 0.2)^3: its centre is (0.1, 0.1, 0.1).
+  w.window.add_point(Eigen::Vector3f(0.05f, 0.12f, 0.1f));
+  w.window.add_point(Eigen::Vector3f(0.15f, 0.08f, 0.1f));
+  ASSERT_EQ(w.window.size(), 1u);
+  std::size_t visited = 0;
+  w.window.for_each_sample([&](const planes::VoxelSums& sums) {
+    ++visited;
+    EXPECT_EQ(sums.point_count, 2u);
+    EXPECT_NEAR(sums.sum_m[0], 0.0f, 1e-6f);  // -0.05 + 0.05
+    EXPECT_NEAR(sums.sum_m[1], 0.0f, 1e-6f);
+    EXPECT_NEAR(sums.sum_outer_m2[0], 2 * 0.05f * 0.05f, 1e-7f);
+    EXPECT_NEAR(sums.sum_outer_m2[1], -2 * 0.05f * 0.02f, 1e-7f);
+    EXPECT_EQ(sums.key, planes::pack_cell(0, 0, 0));
+  });
+  EXPECT_EQ(visited, 1u);
+  EXPECT_EQ(w.window.counters().points_added, 2u);
+}
+
+TEST(VoxelWindow, DropsAndCountsWhatItCannotTake) {
+  Window w(small_config());
+  CollectingSink sink;
+  w.window.recentre(Eigen::Vector2d(0.0, 0.0), sink);
+  // The window is tiles -1..1 of 3.2 m: [-3.2, 6.4) on each axis.
+  w.window.add_point(Eigen::Vector3f(6.5f, 0.0f, 0.0f));
+  w.window.add_point(Eigen::Vector3f(-3.3f, 0.0f, 0.0f));
+  w.window.add_point(Eigen::Vector3f(std::numeric_limits<float>::quiet_NaN(), 0.0f, 0.0f));
+  EXPECT_EQ(w.window.counters().points_outside, 2u);
+  EXPECT_EQ(w.window.counters().points_non_finite, 1u);
+  const Eigen::AlignedBox2d bounds = w.window.bounds_m();
+  EXPECT_NEAR(bounds.min().x(), -3.2, 1e-9);
+  EXPECT_NEAR(bounds.max().y(), 6.4, 1e-9);
+  // 256 samples, then the pool is full: new voxels are dropped, known ones still count.
+  for (int i = 0; i < 300; ++i) {
+    const int column = i % 16;
+    const int row = i / 16;
+    w.window.add_point(Eigen::Vector3f(0.2f * static_cast<float>(column) + 0.1f,
+                                       0.2f * static_cast<float>(row) + 0.1f, 0.1f));
+  }
+  EXPECT_EQ(w.window.size(), 256u);
+  EXPECT_EQ(w.window.counters().points_dropped_full, 300u - 256u);
+  w.window.add_point(Eigen::Vector3f(0.1f, 0.1f, 0.1f));
+  EXPECT_EQ(w.window.counters().points_dropped_full, 300u - 256u);
+}
+
+TEST(VoxelWindow, ScrollsWithTheRobotAndHandsOverTheTilesItLeaves) {
+  Window w(small_config());
+  CollectingSink sink;
+  w.window.recentre(Eigen::Vector2d(0.0, 0.0), sink);
+  // Ten points in each of the nine tiles, at the tiles' centres.
+  for (int tx = -1; tx <= 1; ++tx) {
+    for (int ty = -1; ty <= 1; ++ty) {
+      for (int k = 0; k < 10; ++k) {
+        w.window.add_point(Eigen::Vector3f(3.2f * static_cast<float>(tx) + 1.6f,
+                                           3.2f * static_cast<float>(ty) + 1.6f,
+                                           0.2f * static_cast<float>(k) + 0.1f));
+      }
+    }
+  }
+  ASSERT_EQ(w.window.size(), 90u);
+  // One tile east: the western column (three tiles) leaves, whole.
+  w.window.recentre(Eigen::Vector2d(3.3, 0.0), sink);
+  EXPECT_EQ(sink.tiles.size(), 3u);
+  EXPECT_EQ(sink.samples, 30u);
+  EXPECT_EQ(sink.points, 30u);
+  for (const Eigen::AlignedBox2d& tile : sink.tiles) {
+    EXPECT_NEAR(tile.min().x(), -3.2, 1e-9);
+  }
+  EXPECT_EQ(w.window.size(), 60u);
+  // The samples that stayed are still found: more points in them make no new samples.
+  w.window.add_point(Eigen::Vector3f(1.6f, 1.6f, 0.1f));
+  EXPECT_EQ(w.window.size(), 60u);
+  // The new eastern column takes the slots the western one left.
+  w.window.add_point(Eigen::Vector3f(8.0f, 1.6f, 0.1f));
+  EXPECT_EQ(w.window.size(), 61u);
+  EXPECT_EQ(w.window.counters().tiles_evicted, 3u);
+  // Far away: everything leaves, and the pool is whole again.
+  w.window.recentre(Eigen::Vector2d(100.0, 100.0), sink);
+  EXPECT_EQ(w.window.size(), 0u);
+  EXPECT_EQ(sink.samples, 91u);
+  for (int i = 0; i < 256; ++i) {
+    const int column = i % 16;
+    const int row = i / 16;
+    w.window.add_point(Eigen::Vector3f(100.1f + 0.2f * static_cast<float>(column),
+                                       100.1f + 0.2f * static_cast<float>(row), 0.1f));
+  }
+  EXPECT_EQ(w.window.size(), 256u);
+  EXPECT_EQ(w.window.counters().points_dropped_full, 0u);
+  EXPECT_EQ(w.window.counters().peak_samples, 256u);
+}
+
+TEST(VoxelWindow, AValidConfigurationIsOneTheDetectorsBlocksFit) {
+  EXPECT_EQ(validate(VoxelWindowConfig{}), "");
+  VoxelWindowConfig config;
+  config.tile_size_m = 8.1;  // not whole 0.8 m blocks
+  EXPECT_NE(validate(config), "");
+  config = VoxelWindowConfig{};
+  config.tiles_across = 8;  // even: no middle tile
+  EXPECT_NE(validate(config), "");
+  config = VoxelWindowConfig{};
+  config.max_samples = 10;
+  EXPECT_NE(validate(config), "");
+}
+
+}  // namespace
+}  // namespace blockmap::map

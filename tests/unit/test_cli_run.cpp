@@ -1,0 +1,81 @@
+// `blockmap run`: the onboard mapper on the built-in simulated city block writes what
+// ARCHITECTURE.md 4.4 lists, reports its memory against the budget first, and refuses bad
+// options in one line.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+#include "cli.hpp"
+#include "cli_runner.hpp"
+
+namespace blockmap::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::read_file;
+using testing::run_cli;
+
+fs::path scratch(const std::string& name) {
+  return fs::temp_directory_path() / ("blockmap_run_" + name + "_" + std::to_string(::getpid()));
+}
+
+TEST(RunCommand, MapsTheSimulatedBlockAndWritesEveryOutput) {
+  const fs::path out = scratch("out");
+  const testing::CliResult result = run_cli({"run", "--duration-s", "12", "--out", out.string()});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  EXPECT_EQ(result.err.rfind("memory: ", 0), 0u) << "the memory report comes first";
+  EXPECT_NE(result.err.find("of the 64.0 MiB budget"), std::string::npos) << result.err;
+  EXPECT_NE(result.err.find("map.wrl"), std::string::npos) << "it says where to look";
+  // The final plane list (4.1).
+  const nlohmann::json list = nlohmann::json::parse(read_file(out / "planes.json"));
+  ASSERT_TRUE(list["planes"].is_array());
+  ASSERT_FALSE(list["planes"].empty());
+  for (const nlohmann::json& plane : list["planes"]) {
+    for (const char* key :
+         {"id", "kind", "normal", "d", "support", "rmse", "centroid", "polygon"}) {
+      EXPECT_TRUE(plane.contains(key)) << key;
+    }
+  }
+  EXPECT_GT(list["points"].get<double>(), 10000.0);
+  // The stream: a line per update, every plane of the final list finalized in it.
+  std::istringstream lines(read_file(out / "planes.jsonl"));
+  std::size_t updates = 0;
+  std::size_t finalized = 0;
+  for (std::string line; std::getline(lines, line);) {
+    const nlohmann::json update = nlohmann::json::parse(line);
+    ASSERT_TRUE(update.contains("t_s"));
+    finalized += update["finalized"].size();
+    ++updates;
+  }
+  EXPECT_GT(updates, 5u);
+  EXPECT_GE(finalized, list["planes"].size());
+  const std::string binary = read_file(out / "planes.bin");
+  EXPECT_EQ(binary.substr(0, 8), "BMPLANE1");
+  EXPECT_EQ(read_file(out / "map.wrl").rfind("#VRML V2.0 utf8\n", 0), 0u);
+  EXPECT_EQ(
+      read_file(out / "trajectory.csv").rfind("t_s,x_m,y_m,z_m,roll_rad,pitch_rad,yaw_rad\n", 0),
+      0u);
+  fs::remove_all(out);
+}
+
+TEST(RunCommand, BadOptionsGetOneClearLine) {
+  const fs::path out = scratch("bad");
+  testing::CliResult result =
+      run_cli({"run", "--duration-s", "1", "--budget-mib", "8", "--out", out.string()});
+  EXPECT_EQ(result.status, kExitUsage);
+  EXPECT_NE(result.err.find("over the 8.0 MiB budget"), std::string::npos) << result.err;
+  result = run_cli({"run", "--poses", "guessed", "--out", out.string()});
+  EXPECT_EQ(result.status, kExitUsage);
+  EXPECT_NE(result.err.find("--poses is filter or truth"), std::string::npos) << result.err;
+  result = run_cli({"run", "--world", "atlantis", "--out", out.string()});
+  EXPECT_NE(result.status, kExitOk);
+  EXPECT_NE(result.err.find("atlantis"), std::string::npos) << result.err;
+  fs::remove_all(out);
+}
+
+}  // namespace
+}  // namespace blockmap::cli
