@@ -132,9 +132,10 @@ bool ByteLogFileStream::load_next() {
     // codec check the whole record.
     std::size_t length = 0;
     if (got == record_.size()) {
-      length = std::min<std::size_t>(
+      // Four bytes: the value fits any size_t; past the maximum the codec refuses it.
+      length = static_cast<std::size_t>(std::min<std::uint64_t>(
           protocol::read_le(std::span<const std::uint8_t>(record_).subspan(8, 4)),
-          byte_log::kMaxRecordBytes + std::size_t{1});
+          std::uint64_t{byte_log::kMaxRecordBytes} + 1));
       record_.resize(byte_log::kRecordHeaderBytes + length);
       const std::size_t data =
           std::fread(record_.data() + byte_log::kRecordHeaderBytes, 1, length, file_.get());

@@ -217,11 +217,11 @@ TEST(MapperSim, BenningWithTruePoses) {
     final_list.push_back({msg::PlaneChangeKind::kFinalized, plane});
   }
   const std::size_t map_bytes = hal::protocol::plane_stream::record_size(final_list);
-  const std::size_t cloud_bytes = run.counters.points * 3 * sizeof(float);
-  std::printf("benning: final plane list %zu bytes, its cloud %zu bytes: %.0f times smaller\n",
-              map_bytes, cloud_bytes,
+  const std::uint64_t cloud_bytes = run.counters.points * 3 * sizeof(float);
+  std::printf("benning: final plane list %zu bytes, its cloud %llu bytes: %.0f times smaller\n",
+              map_bytes, static_cast<unsigned long long>(cloud_bytes),
               static_cast<double>(cloud_bytes) / static_cast<double>(map_bytes));
-  EXPECT_GE(cloud_bytes, 1000 * map_bytes);
+  EXPECT_GE(cloud_bytes, std::uint64_t{1000} * map_bytes);
 }
 
 // With the particle filter's poses the stream holds together; the accuracy against truth is
