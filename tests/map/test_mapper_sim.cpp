@@ -191,8 +191,8 @@ TEST(MapperSim, UscBlockWithTruePosesFindsTheFaces) {
 }
 
 TEST(MapperSim, TheSameRunGivesTheSameStream) {
-  const MapperRun a = map_world("usc_block", PoseSource::kLocalizer, 30.0);
-  const MapperRun b = map_world("usc_block", PoseSource::kLocalizer, 30.0);
+  const MapperRun a = map_world("usc_block", PoseSource::kLocalizer, 15.0);
+  const MapperRun b = map_world("usc_block", PoseSource::kLocalizer, 15.0);
   ASSERT_EQ(a.stream.size(), b.stream.size());
   EXPECT_GT(a.stream.size(), 0u);
   EXPECT_TRUE(a.stream == b.stream) << "the plane stream's bytes differ";
