@@ -55,6 +55,7 @@ std::string MappingSession::start(const pipeline::MapperConfig& config,
   }
   err << " MiB\n";
   poses_.resize(config.localizer.filter.history_steps + 1);
+  started_ = std::chrono::steady_clock::now();
   if (options.out.empty()) {
     outputs_.open_trajectory_only(out);
     return {};
@@ -74,15 +75,17 @@ void MappingSession::pump() {
       std::span<const localize::Pose3>(poses_.data(), mapper_.drain_final_poses(poses_)));
 }
 
-std::string MappingSession::finish(double seconds) {
+std::string MappingSession::finish() {
   mapper_.end_of_input();
   pump();
   outputs_.write_poses(
       std::span<const localize::Pose3>(poses_.data(), mapper_.smoothed_poses(poses_)));
-  return outputs_.finish(mapper_.final_planes(), mapper_.counters().points, seconds);
+  wall_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+  return outputs_.finish(mapper_.final_planes(), mapper_.counters().points, wall_s_);
 }
 
-void MappingSession::report(std::ostream& err, double wall_s, double data_s) const {
+void MappingSession::report(std::ostream& err, double data_s) const {
+  const double wall_s = wall_s_;
   const pipeline::MapperCounters& c = mapper_.counters();
   const map::VoxelWindowCounters& w = mapper_.window().counters();
   const map::PlaneRegistryCounters& r = mapper_.registry().counters();

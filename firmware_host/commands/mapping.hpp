@@ -3,6 +3,7 @@
 // updates and poses written out (outputs/map_outputs.hpp) as they come.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <iosfwd>
 #include <memory>
@@ -41,16 +42,19 @@ class MappingSession {
   [[nodiscard]] pipeline::Mapper& mapper() noexcept { return mapper_; }
   // Steps the pipeline over what it was given and writes what it produced.
   void pump();
-  // No more input: the rest is processed, the planes finalized and the outputs closed.
-  [[nodiscard]] std::string finish(double seconds);
-  // One line of counters for stderr.
-  void report(std::ostream& err, double wall_s, double data_s) const;
+  // No more input: the rest is processed, the planes finalized and the outputs closed. The
+  // plane list's "seconds" is the wall time from start() to here.
+  [[nodiscard]] std::string finish();
+  // One line of counters for stderr; data_s: the span of the data mapped.
+  void report(std::ostream& err, double data_s) const;
 
  private:
   std::unique_ptr<Arena> arena_;
   pipeline::Mapper mapper_;
   MapOutputs outputs_;
   std::vector<localize::Pose3> poses_;  // scratch for the localizer's poses
+  std::chrono::steady_clock::time_point started_;
+  double wall_s_ = 0.0;  // from start() to finish()
 };
 
 }  // namespace blockmap::cli

@@ -5,7 +5,6 @@
 // (pipeline::Mapper): with --out it writes what `run` writes (ARCHITECTURE.md 4.4), without it
 // the smoothed trajectory to stdout. Laser logs are read when robot.toml names the lasers.
 #include <CLI/CLI.hpp>
-#include <chrono>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
@@ -278,14 +277,11 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
     return kExitFailure;
   }
 
-  const auto wall_start = std::chrono::steady_clock::now();
   TimeMerge merge(*run, *fixes);
   while (merge.feed_next(session->mapper())) {
     session->pump();
   }
-  const double wall_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
-  if (const std::string problem = session->finish(wall_s); !problem.empty()) {
+  if (const std::string problem = session->finish(); !problem.empty()) {
     err << "blockmap: replay: " << problem << '\n';
     return kExitFailure;
   }
@@ -314,7 +310,7 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
   }
   err << '\n';
   if (map_planes) {
-    session->report(err, wall_s, merge.span_s());
+    session->report(err, merge.span_s());
   }
   bool damaged = false;
   for (std::size_t i = 0; i < run->laser_count(); ++i) {

@@ -5,7 +5,6 @@
 // sliding voxel window, Hough planes, plane registry) maps as it goes, writing the plane
 // stream, the trajectory and, at the end, the plane list and a VRML map (ARCHITECTURE.md 4.4).
 #include <CLI/CLI.hpp>
-#include <chrono>
 #include <memory>
 #include <ostream>
 #include <string>
@@ -87,23 +86,20 @@ int run(const RunOptions& options, std::ostream& err) {
   if (options.cloud) {
     session->mapper().set_point_sink(&cloud);
   }
-  const auto wall_start = std::chrono::steady_clock::now();
   bool more = true;
   while (more) {
     more = simulated->advance();
     simulated->feed(session->mapper(), true_poses);
     session->pump();
   }
-  const double wall_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
-  if (const std::string problem = session->finish(wall_s); !problem.empty()) {
+  if (const std::string problem = session->finish(); !problem.empty()) {
     err << "blockmap: run: " << problem << '\n';
     return kExitFailure;
   }
   if (options.cloud) {
     hal::cloud::write_ply(std::filesystem::path(options.mapping.out) / "cloud.ply", cloud.points());
   }
-  session->report(err, wall_s, simulated->simulation().elapsed_s());
+  session->report(err, simulated->simulation().elapsed_s());
   err << "run: open " << (std::filesystem::path(options.mapping.out) / "map.wrl").string()
       << " in a VRML viewer (view3dscene, MeshLab), or read planes.json\n";
   return kExitOk;

@@ -38,7 +38,6 @@ class MapOutputs {
   [[nodiscard]] std::uint64_t updates() const noexcept { return updates_; }
   [[nodiscard]] std::uint64_t binary_bytes() const noexcept { return binary_bytes_; }
   [[nodiscard]] std::size_t trajectory_rows() const noexcept { return trajectory_rows_; }
-  [[nodiscard]] const hal::linux_backend::UdpSender& udp() const noexcept { return udp_; }
   [[nodiscard]] const std::filesystem::path& dir() const noexcept { return dir_; }
 
  private:

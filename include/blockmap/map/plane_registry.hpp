@@ -109,15 +109,6 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   [[nodiscard]] std::size_t live_count() const noexcept { return live_count_; }
   // The most changes one update can hold.
   [[nodiscard]] std::size_t change_capacity() const noexcept { return changes_.size(); }
-  // The live planes as they were last reported (slots not in use are skipped).
-  template <typename Visit>
-  void for_each_live(Visit&& visit) const {
-    for (const LivePlane& plane : live_) {
-      if (plane.in_use) {
-        visit(plane.reported);
-      }
-    }
-  }
   [[nodiscard]] const PlaneRegistryCounters& counters() const noexcept { return counters_; }
   [[nodiscard]] std::size_t memory_bytes() const noexcept {
     return live_.size_bytes() + final_.size_bytes() + final_moments_.size_bytes() +
