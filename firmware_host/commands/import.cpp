@@ -9,6 +9,11 @@
 // TRAJECTORY is an MRPT odometry text export (`rawlog-edit --export-odometry-txt`): lines of
 // time (Unix s), x, y, phi (m, m, rad) and further columns, '%' comments. The UAL loop of
 // ../shared/data/real/ual-2dlaser-odo is one.
+//
+// With --scans SCANS (an MRPT 2D-scan text export, `rawlog-edit --export-2d-scans-txt`: time,
+// N ranges in m, N valid flags per line) the recorded scans become the robot's first laser's
+// telegrams (laser_<name>.bytelog, LMS2xx B0 measured values with their receive times): real
+// ranges, the robot's laser mount (config/robots/ual_car.toml is the UAL vehicle's).
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <array>
@@ -27,9 +32,11 @@
 
 #include "blockmap/hal/config/config_error.hpp"
 #include "blockmap/hal/geodesy.hpp"
+#include "blockmap/hal/protocol/byte_log.hpp"
 #include "blockmap/hal/protocol/candump.hpp"
 #include "blockmap/hal/protocol/nmea.hpp"
 #include "blockmap/hal/protocol/segway_rmp.hpp"
+#include "blockmap/hal/protocol/sick_lms2xx.hpp"
 #include "blockmap/hal/sim/robot.hpp"
 #include "blockmap/hal/sim/sensor_models.hpp"
 #include "cli.hpp"
@@ -48,6 +55,7 @@ struct ImportOptions {
   std::string trajectory;
   std::string out;
   std::string origin;
+  std::string scans;
   std::string robot = "paper_rmp";
   std::uint64_t seed = 1;
 };
@@ -229,6 +237,73 @@ void write_status_group(std::FILE* out, const rmp::StatusFrames& frames, Timesta
   }
 }
 
+struct ScanImport {
+  std::uint64_t scans = 0;
+  std::uint64_t rows_outside = 0;  // before the first or after the last reference pose
+};
+
+// One B0 telegram per scan row, in a byte log record stamped with the row's time. A row whose
+// range count is not the laser's is an error that names the line: a different laser setup.
+ScanImport write_scans(const std::string& path, const hal::sim::LaserSpec& laser,
+                       const fs::path& folder, double start_s, double end_s) {
+  namespace lms = hal::protocol::sick_lms2xx;
+  namespace byte_log = hal::protocol::byte_log;
+  std::ifstream file(path);
+  if (!file) {
+    throw std::runtime_error(path + ": cannot be read");
+  }
+  const std::size_t beams = lms::geometry(laser.variant).value_count;
+  const fs::path log_path = folder / ("laser_" + laser.name + ".bytelog");
+  std::FILE* out = open_or_throw(log_path);
+  const std::unique_ptr<std::FILE, int (*)(std::FILE*)> closer(out, &std::fclose);
+  static_cast<void>(std::fwrite(byte_log::kMagic.data(), 1, byte_log::kMagic.size(), out));
+  std::vector<double> fields;
+  std::vector<std::uint16_t> values(beams);
+  std::array<std::uint8_t, lms::kMaxTelegramBytes> telegram{};
+  std::array<std::uint8_t, byte_log::kRecordHeaderBytes> header{};
+  ScanImport result;
+  std::size_t line_number = 0;
+  for (std::string line; std::getline(file, line);) {
+    ++line_number;
+    if (line.empty() || line.front() == '%' || line.front() == '#') {
+      continue;
+    }
+    fields.clear();
+    std::istringstream row(line);
+    for (double value = 0.0; row >> value;) {
+      fields.push_back(value);
+    }
+    if (fields.size() != 1 + 2 * beams) {
+      throw std::runtime_error(path + ":" + std::to_string(line_number) + ": " +
+                               std::to_string(fields.size()) + " numbers, expected time, " +
+                               std::to_string(beams) + " ranges and " + std::to_string(beams) +
+                               " valid flags (the laser of the robot)");
+    }
+    const double t_s = fields[0];
+    if (t_s < start_s || t_s > end_s) {
+      ++result.rows_outside;
+      continue;
+    }
+    for (std::size_t i = 0; i < beams; ++i) {
+      const bool valid = fields[1 + beams + i] != 0.0;
+      values[i] = lms::encode_beam(fields[1 + i],
+                                   valid ? msg::BeamStatus::kValid : msg::BeamStatus::kNoReturn,
+                                   laser.units, laser.range_bits);
+    }
+    const std::size_t length = lms::encode_measured_values(telegram, values, laser.units, 0);
+    const byte_log::RecordHeader record{static_cast<TimestampNs>(std::llround(t_s * 1e9)),
+                                        static_cast<std::uint32_t>(length),
+                                        byte_log::Direction::kFromDevice};
+    byte_log::encode_record_header(record, header);
+    static_cast<void>(std::fwrite(header.data(), 1, header.size(), out));
+    if (std::fwrite(telegram.data(), 1, length, out) != length) {
+      throw std::runtime_error(log_path.string() + ": cannot be written");
+    }
+    ++result.scans;
+  }
+  return result;
+}
+
 // GGA and RMC of one epoch, as the simulated receiver sends them (open sky: the spec's HDOP).
 void write_epoch(std::FILE* out, const hal::sim::GpsSpec& spec, double utc_s,
                  const hal::GeodeticPoint& point) {
@@ -340,6 +415,15 @@ int import_trajectory(const ImportOptions& options, std::ostream& err) {
   truth["faces"] = Json::array();
   truth["buildings"] = Json::array();
   std::ofstream(folder / "truth.json") << truth.dump() << '\n';
+  if (!options.scans.empty()) {
+    if (robot.lasers.empty()) {
+      throw hal::ConfigError("--scans: robot " + robot.name + " has no laser to carry them");
+    }
+    const ScanImport scans =
+        write_scans(options.scans, robot.lasers.front(), folder, start_s, end_s);
+    err << "import: " << scans.scans << " scans -> laser_" << robot.lasers.front().name
+        << ".bytelog (" << scans.rows_outside << " outside the trajectory's time)\n";
+  }
   err << "import: " << reference.poses.size() << " reference poses (" << reference.skipped_rows
       << " rows skipped), " << (end_s - start_s) << " s; " << cycles << " RMP cycles, " << epochs
       << " GPS epochs -> " << options.out << '\n';
@@ -363,7 +447,12 @@ Command add_import_command(CLI::App& app) {
       ->add_option("--origin", options->origin,
                    "where the trajectory's frame is on Earth: LAT,LON,HEIGHT")
       ->required();
-  command->add_option("--robot", options->robot, "a built-in robot (paper_rmp) or a robot .toml")
+  command->add_option("--scans", options->scans,
+                      "an MRPT 2D-scan text export (time, ranges, valid flags per line): the "
+                      "robot's first laser's telegrams");
+  command
+      ->add_option("--robot", options->robot,
+                   "a built-in robot (paper_rmp, ual_car) or a robot .toml")
       ->capture_default_str();
   command->add_option("--seed", options->seed, "the sensor errors' seed")->capture_default_str();
   return {command, [options](std::ostream& /*out*/, std::ostream& err) {

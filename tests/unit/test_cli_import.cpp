@@ -163,6 +163,84 @@ TEST(ImportCommand, BadInputGetsOneClearLine) {
   fs::remove_all(folder);
 }
 
+// An MRPT 2D-scan export of `rows` scans, 10 Hz from the loop's start: 361 ranges (beam i at
+// 10 m + i mm, every 50th flagged invalid) and 361 valid flags.
+std::string scan_export(int rows) {
+  std::ostringstream text;
+  text << "%  Time RANGES[i] ... VALID[i]\n";
+  for (int row = 0; row < rows; ++row) {
+    char stamp[32];
+    std::snprintf(stamp, sizeof stamp, "%.6f", 1400843350.5 + 0.1 * row);
+    text << stamp;
+    for (int i = 0; i < 361; ++i) {
+      text << ' ' << (i % 50 == 0 ? 81.91 : 10.0 + 0.001 * i);
+    }
+    for (int i = 0; i < 361; ++i) {
+      text << ' ' << (i % 50 == 0 ? 0 : 1);
+    }
+    text << '\n';
+  }
+  return text.str();
+}
+
+// The recorded ranges become LMS2xx telegrams that the device layer's decoder reads back, to
+// the centimetre the 13-bit codes carry, with the invalid ones as "no return".
+TEST(ImportCommand, RecordedScansBecomeTheLasersTelegrams) {
+  const fs::path folder = scratch("scans");
+  fs::create_directories(folder);
+  std::ofstream(folder / "odometry.txt") << loop_export(6.0);
+  std::ofstream(folder / "scans.txt") << scan_export(20);
+  const fs::path logs = folder / "logs";
+  Result result = run_cli({"import", (folder / "odometry.txt").string(), "--scans",
+                           (folder / "scans.txt").string(), "--robot", "ual_car", "--origin",
+                           kOrigin, "--out", logs.string()});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  EXPECT_NE(result.err.find("import: 20 scans -> laser_horizontal.bytelog"), std::string::npos)
+      << result.err;
+  result = run_cli({"decode", "lms2xx", (logs / "laser_horizontal.bytelog").string()});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  std::istringstream lines(result.out);
+  std::size_t scans = 0;
+  for (std::string line; std::getline(lines, line);) {
+    const nlohmann::json record = nlohmann::json::parse(line);
+    if (!record.contains("ranges_m")) {
+      continue;
+    }
+    const nlohmann::json& ranges = record["ranges_m"];
+    ASSERT_EQ(ranges.size(), 361u);
+    for (std::size_t i = 0; i < 361; ++i) {
+      if (i % 50 == 0) {
+        EXPECT_TRUE(ranges[i].is_null()) << i;
+      } else {
+        EXPECT_NEAR(ranges[i].get<double>(), 10.0 + 0.001 * static_cast<double>(i), 0.0051) << i;
+      }
+    }
+    ++scans;
+  }
+  EXPECT_EQ(scans, 20u);
+  // The replay maps them with the robot's one laser.
+  result = run_cli({"replay", logs.string(), "--out", (folder / "out").string(), "--particles",
+                    "300", "--origin", kOrigin});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  EXPECT_NE(result.err.find("scans projected"), std::string::npos) << result.err;
+  fs::remove_all(folder);
+}
+
+// A row with another laser's beam count names its line, and the import fails.
+TEST(ImportCommand, ScansOfAnotherLaserAreOneClearLine) {
+  const fs::path folder = scratch("bad_scans");
+  fs::create_directories(folder);
+  std::ofstream(folder / "odometry.txt") << loop_export(4.0);
+  std::ofstream(folder / "scans.txt") << scan_export(2) << "1400843351.0 5.0 5.0 1 1\n";
+  const Result result = run_cli({"import", (folder / "odometry.txt").string(), "--scans",
+                                 (folder / "scans.txt").string(), "--robot", "ual_car", "--origin",
+                                 kOrigin, "--out", (folder / "logs").string()});
+  EXPECT_EQ(result.status, kExitFailure);
+  EXPECT_NE(result.err.find("scans.txt:4: 5 numbers, expected time, 361 ranges"), std::string::npos)
+      << result.err;
+  fs::remove_all(folder);
+}
+
 TEST(ImportCommand, TheRealUalLoopRunsThroughTheFilter) {
   const fs::path odometry = fs::path(BLOCKMAP_PROJECT_DIR) /
                             "../shared/data/real/ual-2dlaser-odo/derived_txt/"

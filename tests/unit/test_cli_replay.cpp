@@ -44,6 +44,11 @@ std::vector<Row> trajectory_rows(const std::string& text, std::string& header) {
   return rows;
 }
 
+// A folder of this process's own in the temporary directory.
+fs::path scratch(const std::string& name) {
+  return fs::temp_directory_path() / ("blockmap_" + name + "_" + std::to_string(::getpid()));
+}
+
 // The true pose at t (the truth is at 100 Hz: the nearest sample).
 const nlohmann::json& truth_at(const nlohmann::json& trajectory, double t_s) {
   const double t0 = trajectory[0]["t_s"].get<double>();
@@ -54,25 +59,23 @@ const nlohmann::json& truth_at(const nlohmann::json& trajectory, double t_s) {
 class ReplayCommand : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    folder_ = fs::temp_directory_path() / ("blockmap_replay_" + std::to_string(::getpid()));
-    const Result result = run_cli({"simulate", "--world", "usc_block", "--seed", "2",
-                                   "--duration-s", "90", "--out", folder_.string()});
-    ASSERT_EQ(result.status, kExitOk) << result.err;
+    std::string err;
+    folder_ =
+        testing::simulated_logs({"--world", "usc_block", "--seed", "2", "--duration-s", "90"}, err);
+    ASSERT_FALSE(folder_.empty()) << err;
     truth_ = nlohmann::json::parse(read_file(folder_ / "truth.json"));
     const nlohmann::json& o = truth_["origin"];
     origin_ = std::to_string(o["latitude_deg"].get<double>()) + "," +
               std::to_string(o["longitude_deg"].get<double>()) + "," +
               std::to_string(o["height_m"].get<double>());
   }
-  static void TearDownTestSuite() { fs::remove_all(folder_); }
-
   static inline fs::path folder_;
   static inline nlohmann::json truth_;
   static inline std::string origin_;
 };
 
 TEST_F(ReplayCommand, WritesTheSmoothedTrajectoryCloserToTheTruthThanGps) {
-  const fs::path out = folder_.string() + "_out";
+  const fs::path out = scratch("replay_out");
   // 2,000 particles: well inside the bounds. The localizer alone: the planes of such a replay
   // are ReplayMapping's.
   const Result result = run_cli({"replay", folder_.string(), "--out", out.string(), "--origin",
@@ -136,6 +139,7 @@ TEST_F(ReplayCommand, WritesTheSmoothedTrajectoryCloserToTheTruthThanGps) {
   // Pitch is the base's own (its sensor noise is 0.2 deg); height from GPS, smoothed.
   EXPECT_LT(std::sqrt(pitch_sq / static_cast<double>(n)), 0.01);
   EXPECT_LT(worst_z, 6.0);
+  fs::remove_all(out);
 }
 
 TEST_F(ReplayCommand, WithoutOutWritesTheTrajectoryToStdout) {
@@ -154,18 +158,17 @@ TEST_F(ReplayCommand, WithoutOutWritesTheTrajectoryToStdout) {
 class ReplayMapping : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    folder_ = fs::temp_directory_path() / ("blockmap_replay_map_" + std::to_string(::getpid()));
-    const Result result = run_cli({"simulate", "--world", "usc_block", "--seed", "2",
-                                   "--duration-s", "25", "--out", folder_.string()});
-    ASSERT_EQ(result.status, kExitOk) << result.err;
+    std::string err;
+    folder_ =
+        testing::simulated_logs({"--world", "usc_block", "--seed", "2", "--duration-s", "25"}, err);
+    ASSERT_FALSE(folder_.empty()) << err;
   }
-  static void TearDownTestSuite() { fs::remove_all(folder_); }
 
   static inline fs::path folder_;
 };
 
 TEST_F(ReplayMapping, MapsThePlanesWhenTheLogsHaveLasers) {
-  const fs::path out = folder_.string() + "_planes";
+  const fs::path out = scratch("replay_planes");
   const Result result =
       run_cli({"replay", folder_.string(), "--out", out.string(), "--particles", "500"});
   ASSERT_EQ(result.status, kExitOk) << result.err;
@@ -180,7 +183,7 @@ TEST_F(ReplayMapping, MapsThePlanesWhenTheLogsHaveLasers) {
 }
 
 TEST_F(ReplayMapping, ADamagedLaserLogIsMappedUpToTheDamageAndReported) {
-  const fs::path logs = folder_.string() + "_damaged";
+  const fs::path logs = scratch("replay_damaged");
   fs::remove_all(logs);
   fs::copy(folder_, logs);
   // Cut the horizontal laser's log in the middle of a record.
