@@ -439,7 +439,9 @@ planes::PointMoments PlaneRegistry::points_of(const LivePlane& plane) noexcept {
 
 void PlaneRegistry::combine(const LivePlane& plane, msg::PlanePatch& out) noexcept {
   const planes::PointMoments points = points_of(plane);
-  const planes::PlaneFit fit = planes::fit_plane(points);
+  const planes::PlaneFit fit = config_.walls_from_lines
+                                   ? planes::fit_plane_or_wall(points, config_.line_width_m)
+                                   : planes::fit_plane(points);
   if (!fit.valid) {
     return;
   }

@@ -29,9 +29,24 @@ localize::Pose3 interpolated(const localize::Pose3& a, const localize::Pose3& b,
   return out;
 }
 
-// The detector's configuration inside the mapper: it holds what the window holds.
+// Whether every laser scans a level plane (within scan_plane_angle_deg): its scan plane's
+// normal is the mount's z axis, whose vertical part is cos(roll) cos(pitch).
+bool only_level_lasers(const MapperConfig& config) noexcept {
+  const double cos_level = std::cos(config.scan_plane_angle_deg * std::numbers::pi / 180.0);
+  for (std::size_t laser = 0; laser < config.laser_count; ++laser) {
+    const map::SensorMount& mount = config.laser_mounts[laser];
+    if (std::abs(std::cos(mount.roll_rad) * std::cos(mount.pitch_rad)) < cos_level) {
+      return false;
+    }
+  }
+  return config.laser_count > 0;
+}
+
+// The detector's configuration inside the mapper: it holds what the window holds. With level
+// lasers only, a wall is a line in the map: the vertical plane through it.
 planes::PlanesConfig detector_config(const MapperConfig& config) noexcept {
   planes::PlanesConfig planes = config.planes;
+  planes.walls_from_lines = planes.walls_from_lines || only_level_lasers(config);
   planes.max_samples = config.window.max_samples;
   planes.max_blocks = std::min(planes.max_blocks, planes.max_samples);
   return planes;
@@ -40,6 +55,8 @@ planes::PlanesConfig detector_config(const MapperConfig& config) noexcept {
 map::PlaneRegistryConfig registry_config(const MapperConfig& config) noexcept {
   map::PlaneRegistryConfig registry = config.registry;
   registry.max_detected_planes = config.planes.max_planes;
+  registry.walls_from_lines = detector_config(config).walls_from_lines;
+  registry.line_width_m = 0.5 * config.planes.sample_size_m;
   return registry;
 }
 
@@ -101,6 +118,7 @@ void Mapper::init(Arena& arena, const MapperConfig& config) {
   points_ = arena.allocate_array<Eigen::Vector3f>(msg::kMaxLaserBeams, "mapper.points");
   cos_scan_plane_angle_ = std::cos(config.scan_plane_angle_deg * std::numbers::pi / 180.0);
   sin_scan_plane_angle_ = std::sin(config.scan_plane_angle_deg * std::numbers::pi / 180.0);
+  level_lasers_only_ = only_level_lasers(config);
 }
 
 std::size_t Mapper::arena_bytes(const MapperConfig& config) noexcept {
@@ -331,6 +349,16 @@ void Mapper::project(const QueuedScan& queued) noexcept {
   if (!found) {
     ++counters_.scans_without_pose;
     return;
+  }
+  if (level_lasers_only_) {
+    // No laser here sees a height, and the GPS's wanders by metres: a level laser's returns
+    // drawn at it would be sheets at many heights, and each wall a ladder of lines.
+    if (!height_held_) {
+      height_held_ = true;
+      held_z_m_ = first.z_m;
+    }
+    first.z_m = held_z_m_;
+    last.z_m = held_z_m_;
   }
   // The window follows the robot: tiles it leaves behind go to the registry as they leave.
   window_.recentre(Eigen::Vector2d(first.x_m, first.y_m), registry_);

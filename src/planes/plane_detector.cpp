@@ -107,7 +107,8 @@ std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
   voxels_.compact();
   sections_.build(voxels_);
   voxels_.estimate_shapes(config_.min_points_for_shape, config_.max_planarity_ratio,
-                          config_.max_line_ratio, config_.coarse_second_look);
+                          config_.max_line_ratio, config_.coarse_second_look,
+                          config_.walls_from_lines);
   std::fill_n(block_free_points_.begin(), voxels_.block_count(), 0U);
   for (Voxel& voxel : voxels_.voxels()) {
     voxel.owner = -1;
@@ -218,6 +219,7 @@ bool PlaneDetector::refine(const HoughPeak& peak, const Eigen::Vector3f& section
   // to come back as parallel planes. Three times the RMS distance holds a slab's points; the
   // band grows from inlier_distance_m, at most to max_inlier_distance_m.
   double band_m = config_.inlier_distance_m;
+  bool from_line = false;
   const std::uint32_t iterations = std::max<std::uint32_t>(config_.refine_iterations, 1);
   for (std::uint32_t iteration = 0; iteration < iterations + kMaxBandSteps; ++iteration) {
     // Once the band has grown, the plane is a noisy slab: its scattered samples are its points.
@@ -227,11 +229,19 @@ bool PlaneDetector::refine(const HoughPeak& peak, const Eigen::Vector3f& section
     if (moments.weight < config_.min_votes) {
       return false;
     }
-    const PlaneFit fit = fit_plane(moments);
-    // Points along one line fit every plane through it: not a plane.
-    if (!fit.valid || std::sqrt(fit.eigenvalues_m2(1)) < 0.5 * config_.sample_size_m) {
+    const PlaneFit fit = merger_.fit_of(moments);
+    // Points along one line fit every plane through it: not a plane (unless walls_from_lines
+    // made a horizontal line its vertical wall).
+    if (!fit.valid ||
+        (!fit.from_line && std::sqrt(fit.eigenvalues_m2(1)) < 0.5 * config_.sample_size_m)) {
       return false;
     }
+    // A level laser's own scan plane holds all its returns: refused before it claims them.
+    if (config_.walls_from_lines &&
+        merger_.excluded(fit.normal_unit, fit.d_m + fit.normal_unit.dot(centre))) {
+      return false;
+    }
+    from_line = fit.from_line;
     normal = fit.normal_unit;
     d_m = fit.d_m;
     const double next_band_m = std::clamp(kBandPerRmse * fit.rmse_m, config_.inlier_distance_m,
@@ -254,7 +264,7 @@ bool PlaneDetector::refine(const HoughPeak& peak, const Eigen::Vector3f& section
   out.moments = moments.shifted(centre);
   out.normal_unit = normal;
   out.d_m = d_m + normal.dot(centre);
-  set_corners(normal, d_m, inliers, out);
+  set_corners(normal, d_m, inliers, from_line, out);
   for (Eigen::Vector3f& corner : out.corners_m) {
     corner += section_centre_m;
   }
@@ -293,7 +303,7 @@ bool PlaneDetector::orientation_searched(const Eigen::Vector3d& normal) const no
 }
 
 void PlaneDetector::set_corners(const Eigen::Vector3d& normal, double d_m, std::size_t inlier_count,
-                                SectionPlane& out) const noexcept {
+                                bool from_line, SectionPlane& out) const noexcept {
   // The rectangle, in the plane's own axes, of its samples' centroids (section-relative).
   const auto [u, v] = plane_basis(normal);
   double u_min = std::numeric_limits<double>::infinity();
@@ -306,6 +316,17 @@ void PlaneDetector::set_corners(const Eigen::Vector3d& normal, double d_m, std::
     u_max = std::max(u_max, u.dot(p));
     v_min = std::min(v_min, v.dot(p));
     v_max = std::max(v_max, v.dot(p));
+  }
+  if (from_line) {
+    // A line's samples stand for the points of their voxels: the wall is a voxel high at least.
+    const double half_m = 0.5 * config_.sample_size_m;
+    const auto widen = [half_m](double& low, double& high) {
+      const double middle = 0.5 * (low + high);
+      low = std::min(low, middle - half_m);
+      high = std::max(high, middle + half_m);
+    };
+    widen(u_min, u_max);
+    widen(v_min, v_max);
   }
   const Eigen::Vector3d foot = normal * d_m;
   out.corners_m = {

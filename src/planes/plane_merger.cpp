@@ -163,7 +163,7 @@ void PlaneMerger::build_candidates() noexcept {
       ++counters_.planes_dropped_full;
       continue;
     }
-    candidate.fit = fit_plane(candidate.moments);
+    candidate.fit = fit_of(candidate.moments);
     if (!candidate.fit.valid) {
       continue;
     }
@@ -225,7 +225,7 @@ bool PlaneMerger::within_noise_slab(const Candidate& big, const Candidate& small
 
 void PlaneMerger::absorb(Candidate& big, const Candidate& small) noexcept {
   big.moments.merge(small.moments);
-  big.fit = fit_plane(big.moments);
+  big.fit = fit_of(big.moments);
   std::size_t n = 0;
   for (std::size_t i = 0; i < big.polygon_size; ++i) {
     scratch_points_[n++] = big.polygon_m[i];
@@ -280,19 +280,27 @@ void PlaneMerger::set_exclusions(std::span<const PlaneExclusion> exclusions) noe
 }
 
 bool PlaneMerger::excluded(const Candidate& c) const noexcept {
+  return excluded(c.fit.normal_unit, c.fit.d_m);
+}
+
+bool PlaneMerger::excluded(const Eigen::Vector3d& normal_unit, double d_m) const noexcept {
   for (std::size_t k = 0; k < exclusion_count_; ++k) {
     const PlaneExclusion& e = exclusions_[k];
-    const Eigen::Vector3d& n = c.fit.normal_unit;
-    if (std::abs(n.dot(e.normal)) < e.cos_max_angle) {
+    if (std::abs(normal_unit.dot(e.normal)) < e.cos_max_angle) {
       continue;
     }
     for (const Eigen::Vector3d& origin : e.origins_m) {
-      if (std::abs(n.dot(origin) - c.fit.d_m) <= e.distance_m) {
+      if (std::abs(normal_unit.dot(origin) - d_m) <= e.distance_m) {
         return true;
       }
     }
   }
   return false;
+}
+
+PlaneFit PlaneMerger::fit_of(const PointMoments& moments) const noexcept {
+  return config_.walls_from_lines ? fit_plane_or_wall(moments, 0.5 * config_.sample_size_m)
+                                  : fit_plane(moments);
 }
 
 void PlaneMerger::drop_excluded() noexcept {
@@ -366,8 +374,9 @@ void PlaneMerger::label_and_emit() noexcept {
         z_min = std::min(z_min, c.polygon_m[k].z());
         z_max = std::max(z_max, c.polygon_m[k].z());
       }
-      const bool big =
-          z_max - z_min >= config_.min_wall_height_m && u_max - u_min >= config_.min_wall_width_m;
+      // A wall seen as a line (walls_from_lines) has no observed height: its width decides.
+      const bool big = (c.fit.from_line || z_max - z_min >= config_.min_wall_height_m) &&
+                       u_max - u_min >= config_.min_wall_width_m;
       plane.kind = big ? msg::PlaneKind::kWall : msg::PlaneKind::kOther;
     } else if (std::abs(n.z()) >= cos_horizontal && ground != nullptr) {
       const double height = height_above_ground(c.fit.centroid_m);

@@ -22,4 +22,34 @@ PlaneFit fit_plane(const PointMoments& moments) noexcept {
   return fit;
 }
 
+PlaneFit fit_vertical_plane(const PointMoments& moments) noexcept {
+  PlaneFit fit;
+  if (moments.weight < 3.0) {
+    return fit;
+  }
+  fit.centroid_m = moments.mean();
+  const Eigen::Matrix3d covariance = moments.covariance();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> solver(covariance.topLeftCorner<2, 2>());
+  const Eigen::Vector2d across = solver.eigenvectors().col(0).normalized();
+  fit.normal_unit = Eigen::Vector3d(across.x(), across.y(), 0.0);
+  fit.eigenvalues_m2 =
+      Eigen::Vector3d(std::max(solver.eigenvalues()(0), 0.0),
+                      std::max(solver.eigenvalues()(1), 0.0), std::max(covariance(2, 2), 0.0));
+  fit.d_m = fit.normal_unit.dot(fit.centroid_m);
+  fit.rmse_m = std::sqrt(fit.eigenvalues_m2(0));
+  fit.valid = fit.normal_unit.allFinite();
+  return fit;
+}
+
+PlaneFit fit_plane_or_wall(const PointMoments& moments, double line_width_m) noexcept {
+  PlaneFit wall = fit_vertical_plane(moments);
+  const bool in_a_slice = wall.valid && std::sqrt(wall.eigenvalues_m2(2)) < line_width_m &&
+                          std::sqrt(wall.eigenvalues_m2(1)) >= line_width_m;
+  if (!in_a_slice) {
+    return fit_plane(moments);
+  }
+  wall.from_line = true;
+  return wall;
+}
+
 }  // namespace blockmap::planes

@@ -523,7 +523,8 @@ void VoxelGrid::load_neighbourhood(std::int64_t bx, std::int64_t by, std::int64_
 }
 
 void VoxelGrid::estimate_shapes(std::uint32_t min_points, double max_planarity_ratio,
-                                double max_line_ratio, bool coarse_second_look) noexcept {
+                                double max_line_ratio, bool coarse_second_look,
+                                bool level_slices) noexcept {
   const auto planar_ratio_sq = static_cast<float>(max_planarity_ratio * max_planarity_ratio);
   const auto line_ratio_sq = static_cast<float>(max_line_ratio * max_line_ratio);
   // Pipelined: the neighbourhood of the block kAhead places on is looked up (and its sums
@@ -552,10 +553,11 @@ void VoxelGrid::estimate_shapes(std::uint32_t min_points, double max_planarity_r
     bool any_scattered = false;
     for (std::uint32_t id = range.first; id < range.first + range.count; ++id) {
       estimate_shape(voxels_[id], around, planar_ratio_sq, line_ratio_sq,
-                     static_cast<float>(min_points));
+                     static_cast<float>(min_points), level_slices);
       any_scattered |= voxels_[id].shape == LocalShape::kScattered;
     }
-    if (!coarse_second_look || !any_scattered) {
+    // Level slices have no second look: at 2.4 m they are flat too, and only the slice.
+    if (!coarse_second_look || level_slices || !any_scattered) {
       continue;
     }
     const Eigen::Vector3f normal =
@@ -704,8 +706,8 @@ Eigen::Vector3f VoxelGrid::coarse_normal(std::int64_t bx, std::int64_t by, std::
 }
 
 void VoxelGrid::estimate_shape(Voxel& voxel, const BlockNeighbourhood& around,
-                               float planar_ratio_sq, float line_ratio_sq,
-                               float min_points) const noexcept {
+                               float planar_ratio_sq, float line_ratio_sq, float min_points,
+                               bool level_slices) const noexcept {
   const auto cell = unpack_cell(voxel.key);
   std::array<AxisSpan, 2> xs;
   std::array<AxisSpan, 2> ys;
@@ -763,6 +765,16 @@ void VoxelGrid::estimate_shape(Voxel& voxel, const BlockNeighbourhood& around,
     // Wide in two directions, thin in the third: a surface.
     voxel.shape = LocalShape::kPlanar;
     voxel.axis = eigenvector_of(spread.covariance, l(0));
+    // Within 10 deg of vertical: flat only because a level laser's slice holds its points.
+    // Its shape within the slice decides: at most half as wide across as along, the trace of
+    // a wall (a trunk's or a bush's is round).
+    constexpr float kCosLevelSlice = 0.985F;
+    constexpr float kTraceRatioSq = 0.25F;
+    if (level_slices && std::abs(voxel.axis.z()) >= kCosLevelSlice) {
+      const bool trace = l(1) <= kTraceRatioSq * l(2);
+      voxel.shape = trace ? LocalShape::kLinear : LocalShape::kScattered;
+      voxel.axis = eigenvector_of(spread.covariance, l(2));
+    }
   } else {
     voxel.shape = LocalShape::kScattered;
   }

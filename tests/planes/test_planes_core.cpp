@@ -258,6 +258,74 @@ TEST(PlaneDetector, FindsAWallBlurredByPoseErrorsOnceAndCentred) {
   EXPECT_GT(planar_with_second_look, 2 * fine_only.detector.stats().planar_samples);
 }
 
+// What a level 2D laser at 0.4 m sees of a 12 m wall 6 m away (the plane x = 6) and of the
+// ground-level clutter around it: every point in the scan plane z = 0.4, the wall a line with
+// 2 cm of range noise, the clutter scattered over the slice.
+std::vector<Eigen::Vector3f> level_laser_slice() {
+  std::mt19937 random(7);
+  std::normal_distribution<float> noise(0.0f, 0.02f);
+  std::uniform_real_distribution<float> anywhere(-4.0f, 4.0f);
+  std::vector<Eigen::Vector3f> points;
+  for (int pass = 0; pass < 40; ++pass) {
+    for (float y = -6.0f; y <= 6.0f; y += 0.02f) {
+      points.emplace_back(6.0f + noise(random), y, 0.4f);
+    }
+  }
+  for (int i = 0; i < 4000; ++i) {
+    points.emplace_back(anywhere(random), anywhere(random), 0.4f);
+  }
+  return points;
+}
+
+TEST(PlaneFit, PointsInAHorizontalSliceFitTheVerticalPlaneThroughTheirLine) {
+  PointMoments line;
+  for (int i = 0; i <= 100; ++i) {
+    const double along = -5.0 + 0.1 * i;
+    line.add(
+        Eigen::Vector3d(3.0 + 0.5 * along, 1.0 + along, 0.4 + ((i % 2) != 0 ? 0.005 : -0.005)));
+  }
+  // A line fits every plane through it: the general fit picks one, the wall fit the vertical.
+  const PlaneFit wall = fit_plane_or_wall(line, 0.1);
+  ASSERT_TRUE(wall.valid);
+  EXPECT_TRUE(wall.from_line);
+  const Eigen::Vector3d expected = Eigen::Vector3d(1.0, -0.5, 0.0).normalized();
+  EXPECT_GT(std::abs(wall.normal_unit.dot(expected)), 0.99999);
+  EXPECT_NEAR(std::abs(wall.d_m), std::abs(expected.dot(Eigen::Vector3d(3.0, 1.0, 0.4))), 1e-9);
+  // Points spread in height are a plane of their own: the ordinary fit.
+  PointMoments facade = line;
+  facade.add(Eigen::Vector3d(3.0, 1.0, 3.0));
+  facade.add(Eigen::Vector3d(4.0, 3.0, 3.0));
+  facade.add(Eigen::Vector3d(2.0, -1.0, 3.0));
+  EXPECT_FALSE(fit_plane_or_wall(facade, 0.1).from_line);
+}
+
+TEST(PlaneDetector, ALevelLasersLineIsAVerticalWallAndItsScanPlaneIsNone) {
+  PlanesConfig config;
+  config.max_samples = 1 << 16;
+  // Without walls_from_lines a line is not a plane, and the slice is one flat sheet.
+  DetectorFixture plain(config);
+  plain.detector.add_points(level_laser_slice());
+  for (const msg::PlanePatch& plane : plain.detector.detect()) {
+    EXPECT_GT(std::abs(plane.normal.z()), 0.99) << "only the slice itself";
+  }
+  config.walls_from_lines = true;
+  DetectorFixture lines(config);
+  // The laser's positions: along the way at x = 0, in its scan plane.
+  const std::array<Eigen::Vector3d, 3> laser_path = {Eigen::Vector3d(0.0, -4.0, 0.4),
+                                                     Eigen::Vector3d(0.0, 0.0, 0.4),
+                                                     Eigen::Vector3d(0.0, 4.0, 0.4)};
+  const std::array<PlaneExclusion, 1> scan_plane = {
+      PlaneExclusion{laser_path, Eigen::Vector3d::UnitZ(), std::cos(10.0 * kDeg), 0.5}};
+  lines.detector.set_exclusions(scan_plane);
+  lines.detector.add_points(level_laser_slice());
+  const auto planes = lines.detector.detect();
+  ASSERT_EQ(planes.size(), 1u);
+  EXPECT_GT(std::abs(planes[0].normal.x()), std::cos(1.0 * kDeg));
+  EXPECT_NEAR(std::abs(planes[0].d_m), 6.0, 0.03);
+  EXPECT_EQ(planes[0].kind, msg::PlaneKind::kWall);
+  EXPECT_GT(planes[0].support, 0.9 * 40 * 600);
+}
+
 TEST(PlaneDetector, AnyOrientationFindsARampThePapersModeDoesNotSearch) {
   std::vector<Eigen::Vector3f> points;
   const Eigen::Vector3f n = direction(30, 20);

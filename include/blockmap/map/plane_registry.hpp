@@ -57,6 +57,10 @@ struct PlaneRegistryConfig {
   // the band.
   double band_m = 0.1;
   double max_band_m = 0.4;
+  // Walls seen as horizontal lines are the vertical planes through them (the detector's
+  // walls_from_lines); a line is one when it is narrower than line_width_m.
+  bool walls_from_lines = false;
+  double line_width_m = 0.1;
   std::uint32_t retract_after_misses = 3;
   double min_final_support = 50.0;  // a retracted plane with fewer frozen points is removed
   // A plane is reported changed when it moved or grew by more than these.

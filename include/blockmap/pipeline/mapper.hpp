@@ -234,6 +234,11 @@ class Mapper {
   std::array<LaserPath, kMaxLasers> laser_paths_{};
   double cos_scan_plane_angle_ = 1.0;
   double sin_scan_plane_angle_ = 0.0;
+  // Level lasers only: no laser sees a height, so the scans are drawn at the first pose's
+  // height (held_z_m) rather than the GPS's, which wanders by metres (only_level_lasers()).
+  bool level_lasers_only_ = false;
+  bool height_held_ = false;
+  double held_z_m_ = 0.0;
 
   bool extraction_scheduled_ = false;
   TimestampNs next_extraction_ns_ = 0;

@@ -88,8 +88,9 @@ class PlaneDetector {
   bool refine(const HoughPeak& peak, const Eigen::Vector3f& section_centre_m,
               std::size_t sample_count, SectionPlane& out) noexcept;
   [[nodiscard]] bool orientation_searched(const Eigen::Vector3d& normal) const noexcept;
+  // from_line: the plane is a wall seen as a line (walls_from_lines), a voxel high at least.
   void set_corners(const Eigen::Vector3d& normal, double d_m, std::size_t inlier_count,
-                   SectionPlane& out) const noexcept;
+                   bool from_line, SectionPlane& out) const noexcept;
 
   PlanesConfig config_;
   OrientationGrid orientations_;

@@ -64,6 +64,10 @@ class PlaneMerger {
 
   // The exclusions of the next merge() (at most kMaxExclusions; kept until replaced).
   void set_exclusions(std::span<const PlaneExclusion> exclusions) noexcept;
+  // Whether the plane n . p = d_m is one of the exclusions'.
+  [[nodiscard]] bool excluded(const Eigen::Vector3d& normal_unit, double d_m) const noexcept;
+  // fit_plane(), or fit_plane_or_wall() when walls may be lines (walls_from_lines).
+  [[nodiscard]] PlaneFit fit_of(const PointMoments& moments) const noexcept;
 
   // Merges, labels and numbers the planes (largest first).
   std::span<const msg::PlanePatch> merge(const SectionGrid& sections) noexcept;

@@ -65,6 +65,12 @@ struct PlanesConfig {
   double max_inlier_distance_m = 0.4;
   double inlier_angle_deg = 20.0;
   std::uint32_t refine_iterations = 2;
+  // A level 2D laser sees a wall as a horizontal line, whose points fit every plane through
+  // it. With this set, such a line is the vertical plane through it (the paper's walls are
+  // vertical; fit_plane_or_wall), and a plane that set_exclusions() names (the laser's own
+  // scan plane, which holds all its points) is refused before it takes any sample. Off, a
+  // line is not a plane. The mapper sets it when all its lasers are level.
+  bool walls_from_lines = false;
 
   // Merging across sections (Tavares and Padilha): planes whose normals differ by at most
   // merge_angle_deg, whose centroids lie within merge_distance_m of each other's plane and

@@ -48,8 +48,20 @@ struct PlaneFit {
   Eigen::Vector3d centroid_m = Eigen::Vector3d::Zero();
   double rmse_m = 0.0;                                       // RMS point distance to the plane
   Eigen::Vector3d eigenvalues_m2 = Eigen::Vector3d::Zero();  // ascending
+  bool from_line = false;  // fit_plane_or_wall: the vertical plane through a horizontal line
 };
 
 [[nodiscard]] PlaneFit fit_plane(const PointMoments& moments) noexcept;
+
+// The least-squares vertical plane: the line that best fits the points seen from above.
+// eigenvalues_m2 holds the points' horizontal spread across and along the plane, then their
+// vertical spread.
+[[nodiscard]] PlaneFit fit_vertical_plane(const PointMoments& moments) noexcept;
+
+// fit_plane(), unless the points lie in one horizontal slice (spread less than line_width_m
+// vertically, at least that horizontally): a wall as a level 2D laser sees it, a line, which
+// fits every plane through it, and the slice itself. Then the vertical plane that fits the
+// points seen from above, the paper's assumption for walls, with from_line set.
+[[nodiscard]] PlaneFit fit_plane_or_wall(const PointMoments& moments, double line_width_m) noexcept;
 
 }  // namespace blockmap::planes

@@ -188,9 +188,11 @@ class VoxelGrid {
   void compact() noexcept;
   // Classifies every sample by the moments of its 3 x 3 x 3 neighbourhood (after compact()).
   // With coarse_second_look, samples that are scattered get the shape of the 3 x 3 x 3 blocks
-  // around their block when that is planar.
+  // around their block when that is planar. With level_slices (all points from level 2D
+  // lasers, walls_from_lines), a neighbourhood flat because it lies in a horizontal slice is
+  // classified by its shape within the slice: thin across, a line (a wall's trace).
   void estimate_shapes(std::uint32_t min_points, double max_planarity_ratio, double max_line_ratio,
-                       bool coarse_second_look) noexcept;
+                       bool coarse_second_look, bool level_slices = false) noexcept;
 
   // The samples of the last compact(); an id is an index into this span.
   [[nodiscard]] std::span<Voxel> voxels() noexcept { return voxels_.first(count_); }
@@ -265,7 +267,7 @@ class VoxelGrid {
   void load_neighbourhood(std::int64_t bx, std::int64_t by, std::int64_t bz, std::uint64_t live,
                           BlockNeighbourhood& out) const noexcept;
   void estimate_shape(Voxel& voxel, const BlockNeighbourhood& around, float planar_ratio_sq,
-                      float line_ratio_sq, float min_points) const noexcept;
+                      float line_ratio_sq, float min_points, bool level_slices) const noexcept;
   [[nodiscard]] CentredSums sum_block(std::uint32_t block) const noexcept;
   // The planar normal of the 3 x 3 x 3 blocks around block (bx, by, bz), or zero when they
   // are not planar. Sums the blocks it needs first.
