@@ -230,10 +230,10 @@ bool PlaneDetector::refine(const HoughPeak& peak, const Eigen::Vector3f& section
       return false;
     }
     const PlaneFit fit = merger_.fit_of(moments);
-    // Points along one line fit every plane through it: not a plane (unless walls_from_lines
-    // made a horizontal line its vertical wall).
-    if (!fit.valid ||
-        (!fit.from_line && std::sqrt(fit.eigenvalues_m2(1)) < 0.5 * config_.sample_size_m)) {
+    // Points along one line fit every plane through it: not a plane. (With walls_from_lines a
+    // horizontal line is its vertical wall, and eigenvalues_m2(1) its spread along the line: a
+    // blob in the slice is not a wall either.)
+    if (!fit.valid || std::sqrt(fit.eigenvalues_m2(1)) < 0.5 * config_.sample_size_m) {
       return false;
     }
     // A level laser's own scan plane holds all its returns: refused before it claims them.

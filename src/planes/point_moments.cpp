@@ -43,8 +43,7 @@ PlaneFit fit_vertical_plane(const PointMoments& moments) noexcept {
 
 PlaneFit fit_plane_or_wall(const PointMoments& moments, double line_width_m) noexcept {
   PlaneFit wall = fit_vertical_plane(moments);
-  const bool in_a_slice = wall.valid && std::sqrt(wall.eigenvalues_m2(2)) < line_width_m &&
-                          std::sqrt(wall.eigenvalues_m2(1)) >= line_width_m;
+  const bool in_a_slice = wall.valid && std::sqrt(wall.eigenvalues_m2(2)) < line_width_m;
   if (!in_a_slice) {
     return fit_plane(moments);
   }

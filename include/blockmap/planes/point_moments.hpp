@@ -59,9 +59,10 @@ struct PlaneFit {
 [[nodiscard]] PlaneFit fit_vertical_plane(const PointMoments& moments) noexcept;
 
 // fit_plane(), unless the points lie in one horizontal slice (spread less than line_width_m
-// vertically, at least that horizontally): a wall as a level 2D laser sees it, a line, which
-// fits every plane through it, and the slice itself. Then the vertical plane that fits the
-// points seen from above, the paper's assumption for walls, with from_line set.
+// vertically): a wall as a level 2D laser sees it, a line, which fits every plane through it
+// and the slice itself. Then the vertical plane that fits the points seen from above, the
+// paper's assumption for walls, with from_line set; eigenvalues_m2(1) then says whether they
+// are a line (spread along it) or a blob.
 [[nodiscard]] PlaneFit fit_plane_or_wall(const PointMoments& moments, double line_width_m) noexcept;
 
 }  // namespace blockmap::planes
