@@ -255,8 +255,15 @@ ScanImport write_scans(const std::string& path, const hal::sim::LaserSpec& laser
   const std::size_t beams = lms::geometry(laser.variant).value_count;
   const fs::path log_path = folder / ("laser_" + laser.name + ".bytelog");
   std::FILE* out = open_or_throw(log_path);
-  const std::unique_ptr<std::FILE, int (*)(std::FILE*)> closer(out, &std::fclose);
-  static_cast<void>(std::fwrite(byte_log::kMagic.data(), 1, byte_log::kMagic.size(), out));
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> closer(out, &std::fclose);
+  // Every write is checked, and the close too (buffered bytes reach the disk there): a log
+  // cut short by a full disk is an error, not a shorter run.
+  const auto write = [&](const void* bytes, std::size_t size) {
+    if (std::fwrite(bytes, 1, size, out) != size) {
+      throw std::runtime_error(log_path.string() + ": cannot be written");
+    }
+  };
+  write(byte_log::kMagic.data(), byte_log::kMagic.size());
   std::vector<double> fields;
   std::vector<std::uint16_t> values(beams);
   std::array<std::uint8_t, lms::kMaxTelegramBytes> telegram{};
@@ -295,11 +302,12 @@ ScanImport write_scans(const std::string& path, const hal::sim::LaserSpec& laser
                                         static_cast<std::uint32_t>(length),
                                         byte_log::Direction::kFromDevice};
     byte_log::encode_record_header(record, header);
-    static_cast<void>(std::fwrite(header.data(), 1, header.size(), out));
-    if (std::fwrite(telegram.data(), 1, length, out) != length) {
-      throw std::runtime_error(log_path.string() + ": cannot be written");
-    }
+    write(header.data(), header.size());
+    write(telegram.data(), length);
     ++result.scans;
+  }
+  if (std::fclose(closer.release()) != 0) {
+    throw std::runtime_error(log_path.string() + ": cannot be written");
   }
   return result;
 }
