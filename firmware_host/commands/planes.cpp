@@ -96,7 +96,8 @@ int detect_planes(const PlanesOptions& options, std::ostream& out, std::ostream&
   }
   err << ", " << stats.samples << " samples, " << stats.sections << " sections, "
       << stats.section_planes << " section planes -> " << planes.size() << " planes in "
-      << seconds * 1e3 << " ms; " << (arena.used_bytes() >> 20) << " MiB\n";
+      << seconds * 1e3 << " ms; surfaces " << std::lround(stats.surface_noise_m * 1e3)
+      << " mm thick (RMS); " << (arena.used_bytes() >> 20) << " MiB\n";
   if (stats.overflows > 0) {
     err << "planes: warning: " << stats.overflows
         << " sections, samples or planes beyond a capacity were left out (raise max_* in the "

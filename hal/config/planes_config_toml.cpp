@@ -57,6 +57,8 @@ planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view
   c.max_planarity_ratio = t.number_or("max_planarity_ratio", c.max_planarity_ratio);
   c.max_line_ratio = t.number_or("max_line_ratio", c.max_line_ratio);
   c.coarse_second_look = t.boolean_or("coarse_second_look", c.coarse_second_look);
+  c.max_noisy_slab_ratio = t.number_or("max_noisy_slab_ratio", c.max_noisy_slab_ratio);
+  c.noisy_slab_per_noise = t.number_or("noisy_slab_per_noise", c.noisy_slab_per_noise);
   c.walls_from_lines = t.boolean_or("walls_from_lines", c.walls_from_lines);
   c.min_votes = t.number_or("min_votes", c.min_votes);
   c.max_planes_per_section = capacity(t, "max_planes_per_section", c.max_planes_per_section);

@@ -13,6 +13,18 @@
 namespace blockmap::planes {
 namespace {
 
+ShapeOptions shape_options(const PlanesConfig& config) noexcept {
+  ShapeOptions options;
+  options.min_points = config.min_points_for_shape;
+  options.max_planarity_ratio = config.max_planarity_ratio;
+  options.max_line_ratio = config.max_line_ratio;
+  options.coarse_second_look = config.coarse_second_look;
+  options.max_noisy_slab_ratio = config.max_noisy_slab_ratio;
+  options.noisy_slab_per_noise = config.noisy_slab_per_noise;
+  options.level_slices = config.walls_from_lines;
+  return options;
+}
+
 constexpr double kDegToRad = std::numbers::pi / 180.0;
 // The inlier band: this many times the fit's RMS distance, grown in at most this many extra
 // refinement steps.
@@ -106,9 +118,8 @@ std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
                           counters.points_dropped_nonfinite;
   voxels_.compact();
   sections_.build(voxels_);
-  voxels_.estimate_shapes(config_.min_points_for_shape, config_.max_planarity_ratio,
-                          config_.max_line_ratio, config_.coarse_second_look,
-                          config_.walls_from_lines);
+  voxels_.estimate_shapes(shape_options(config_));
+  stats_.surface_noise_m = voxels_.surface_noise_m();
   std::fill_n(block_free_points_.begin(), voxels_.block_count(), 0U);
   for (Voxel& voxel : voxels_.voxels()) {
     voxel.owner = -1;

@@ -14,11 +14,16 @@ namespace blockmap::planes {
 namespace {
 
 // A small plane inside a big plane's noise slab (within_noise_slab): at most this share of
-// the big plane's points, at most this far off its direction, and within
-// this many of its RMS distances (plus merge_distance_m).
+// the big plane's points, at most this far off its direction, and within this many of their
+// summed RMS distances (plus merge_distance_m).
 constexpr double kSlabShareMax = 0.25;
 constexpr double kSlabMaxAngleDeg = 15.0;
 constexpr double kSlabPerRmse = 3.0;
+// Two parallel planes are one when their offset is within merge_distance_m plus this many of
+// their summed RMS distances: a slab blurred by pose errors can come back as two halves, each
+// with its own least-squares plane a fraction of the slab apart. Crisp planes (RMS of a few
+// millimetres) keep merge_distance_m.
+constexpr double kOffsetPerRmse = 1.0;
 
 double cos_deg(double degrees) {
   return std::cos(degrees * std::numbers::pi / 180.0);
@@ -183,9 +188,10 @@ bool PlaneMerger::can_merge(const Candidate& big, const Candidate& small) noexce
   if (!inside_slab && std::abs(n.dot(small.fit.normal_unit)) < cos_deg(config_.merge_angle_deg)) {
     return false;
   }
-  // The smaller plane's centroid lies on the bigger plane.
-  if (!inside_slab &&
-      std::abs(n.dot(small.fit.centroid_m) - big.fit.d_m) > config_.merge_distance_m) {
+  // The smaller plane's centroid lies on the bigger plane, within their noise.
+  const double offset_m =
+      config_.merge_distance_m + kOffsetPerRmse * (noise_rmse_m(big) + noise_rmse_m(small));
+  if (!inside_slab && std::abs(n.dot(small.fit.centroid_m) - big.fit.d_m) > offset_m) {
     return false;
   }
   const std::pair<Eigen::Vector3d, Eigen::Vector3d> basis = plane_basis(n);
@@ -206,6 +212,12 @@ bool PlaneMerger::can_merge(const Candidate& big, const Candidate& small) noexce
   return convex_polygon_gap(a, b) <= reach_m;
 }
 
+double PlaneMerger::noise_rmse_m(const Candidate& c) const noexcept {
+  // A level laser's trace spans no height to tell a blurred slab from parallel things a few
+  // decimetres apart (a kerb, a fence and the wall behind them): its spread is not noise.
+  return config_.walls_from_lines ? 0.0 : c.fit.rmse_m;
+}
+
 bool PlaneMerger::within_noise_slab(const Candidate& big, const Candidate& small) const noexcept {
   // A wall blurred by pose errors is a slab a few RMS distances thick; the detector takes
   // its core, and the thin tails on either side come back as small planes, parallel or a
@@ -214,7 +226,9 @@ bool PlaneMerger::within_noise_slab(const Candidate& big, const Candidate& small
       std::abs(big.fit.normal_unit.dot(small.fit.normal_unit)) < cos_deg(kSlabMaxAngleDeg)) {
     return false;
   }
-  const double slab_m = kSlabPerRmse * big.fit.rmse_m + config_.merge_distance_m;
+  // The small plane's own RMS counts too: a shoulder of the slab is a noisy plane itself.
+  const double slab_m =
+      kSlabPerRmse * (big.fit.rmse_m + noise_rmse_m(small)) + config_.merge_distance_m;
   for (std::size_t i = 0; i < small.polygon_size; ++i) {
     if (std::abs(big.fit.normal_unit.dot(small.polygon_m[i]) - big.fit.d_m) > slab_m) {
       return false;

@@ -42,6 +42,10 @@ std::string validate(const PlanesConfig& c) {
       !(c.max_line_ratio > 0.0 && c.max_line_ratio <= 1.0)) {
     return "max_planarity_ratio and max_line_ratio must be in (0, 1]";
   }
+  if (!(c.max_noisy_slab_ratio > 0.0 && c.max_noisy_slab_ratio <= 1.0) ||
+      !(c.noisy_slab_per_noise >= 0.0 && c.noisy_slab_per_noise <= 100.0)) {
+    return "max_noisy_slab_ratio must be in (0, 1] and noisy_slab_per_noise in [0, 100]";
+  }
   if (!(c.min_votes >= 3.0)) {
     return "min_votes must be >= 3";
   }

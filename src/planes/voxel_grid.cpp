@@ -522,11 +522,50 @@ void VoxelGrid::load_neighbourhood(std::int64_t bx, std::int64_t by, std::int64_
   }
 }
 
-void VoxelGrid::estimate_shapes(std::uint32_t min_points, double max_planarity_ratio,
-                                double max_line_ratio, bool coarse_second_look,
-                                bool level_slices) noexcept {
-  const auto planar_ratio_sq = static_cast<float>(max_planarity_ratio * max_planarity_ratio);
-  const auto line_ratio_sq = static_cast<float>(max_line_ratio * max_line_ratio);
+void VoxelGrid::estimate_shapes(const ShapeOptions& options) noexcept {
+  const auto squared = [](double ratio) { return static_cast<float>(ratio * ratio); };
+  ShapeLimits limits;
+  limits.planar_ratio_sq = squared(options.max_planarity_ratio);
+  limits.line_ratio_sq = squared(options.max_line_ratio);
+  limits.min_points = static_cast<float>(options.min_points);
+  limits.level_slices = options.level_slices;
+  double thickness_sum_m = 0.0;
+  std::uint64_t planar_count = 0;
+  estimate_fine_shapes(limits, thickness_sum_m, planar_count);
+  surface_noise_m_ = planar_count > 0 ? thickness_sum_m / static_cast<double>(planar_count) : 0.0;
+  // Level slices have no second look: at 2.4 m they are flat too, and only the slice.
+  if (!options.coarse_second_look || options.level_slices) {
+    return;
+  }
+  // The second look knows how thick this cloud's surfaces are: a slab a few surface-noise
+  // thicknesses thick is a blurred wall (pose errors blur every surface alike), where a crisp
+  // cloud's slab of that thickness is a hedge or a row of bushes.
+  limits.noisy_slab_ratio_sq = squared(options.max_noisy_slab_ratio);
+  limits.noisy_slab_thickness_m2 = squared(options.noisy_slab_per_noise * surface_noise_m_);
+  for (std::size_t i = 0; i < block_count_; ++i) {
+    const std::uint32_t block = block_order_[i].block;
+    const BlockRange range = block_range(block);
+    const std::span<Voxel> samples = voxels_.subspan(range.first, range.count);
+    const auto scattered = [](const Voxel& v) { return v.shape == LocalShape::kScattered; };
+    if (std::none_of(samples.begin(), samples.end(), scattered)) {
+      continue;
+    }
+    const auto b = unpack_cell(block_keys_[block]);
+    const Eigen::Vector3f normal = coarse_normal(b.x(), b.y(), b.z(), limits);
+    if (normal.isZero()) {
+      continue;
+    }
+    for (Voxel& voxel : samples) {
+      if (scattered(voxel)) {
+        voxel.shape = LocalShape::kPlanar;
+        voxel.axis = normal;
+      }
+    }
+  }
+}
+
+void VoxelGrid::estimate_fine_shapes(const ShapeLimits& limits, double& thickness_sum_m,
+                                     std::uint64_t& planar_count) noexcept {
   // Pipelined: the neighbourhood of the block kAhead places on is looked up (and its sums
   // fetched) while this block's samples are summed.
   constexpr std::size_t kAhead = 2;
@@ -543,34 +582,18 @@ void VoxelGrid::estimate_shapes(std::uint32_t min_points, double max_planarity_r
     if (i + kAhead < block_count_) {
       look_up(i + kAhead);
     }
-    const std::uint32_t block = block_order_[i].block;
-    const BlockRange range = block_range(block);
-    if (range.count == 0) {
-      continue;
-    }
-    const auto b = unpack_cell(block_keys_[block]);
+    const BlockRange range = block_range(block_order_[i].block);
     const BlockNeighbourhood& around = ring[i % ring.size()];
-    bool any_scattered = false;
+    float thickness_sum = 0.0f;  // per block in float, over the cloud in double
     for (std::uint32_t id = range.first; id < range.first + range.count; ++id) {
-      estimate_shape(voxels_[id], around, planar_ratio_sq, line_ratio_sq,
-                     static_cast<float>(min_points), level_slices);
-      any_scattered |= voxels_[id].shape == LocalShape::kScattered;
-    }
-    // Level slices have no second look: at 2.4 m they are flat too, and only the slice.
-    if (!coarse_second_look || level_slices || !any_scattered) {
-      continue;
-    }
-    const Eigen::Vector3f normal =
-        coarse_normal(b.x(), b.y(), b.z(), planar_ratio_sq, static_cast<float>(min_points));
-    if (normal.isZero()) {
-      continue;
-    }
-    for (std::uint32_t id = range.first; id < range.first + range.count; ++id) {
-      if (voxels_[id].shape == LocalShape::kScattered) {
-        voxels_[id].shape = LocalShape::kPlanar;
-        voxels_[id].axis = normal;
+      Voxel& voxel = voxels_[id];
+      const float thickness_m = estimate_shape(voxel, around, limits);
+      if (voxel.shape == LocalShape::kPlanar) {
+        thickness_sum += thickness_m;
+        ++planar_count;
       }
     }
+    thickness_sum_m += static_cast<double>(thickness_sum);
   }
 }
 
@@ -674,7 +697,7 @@ struct Spread {
 }  // namespace
 
 Eigen::Vector3f VoxelGrid::coarse_normal(std::int64_t bx, std::int64_t by, std::int64_t bz,
-                                         float planar_ratio_sq, float min_points) noexcept {
+                                         const ShapeLimits& limits) noexcept {
   CentredSums around;
   const float block_m = size_m_ * static_cast<float>(kBlockEdge);
   for (std::int64_t dx = -1; dx <= 1; ++dx) {
@@ -694,20 +717,29 @@ Eigen::Vector3f VoxelGrid::coarse_normal(std::int64_t bx, std::int64_t by, std::
       }
     }
   }
-  if (around.values[0] < min_points) {
+  if (around.values[0] < limits.min_points) {
     return Eigen::Vector3f::Zero();
   }
   const Spread spread = spread_of(around);
   const Eigen::Vector3f& l = spread.eigenvalues_m2;
-  if (l(0) > planar_ratio_sq * l(1)) {
+  const bool planar = l(0) <= limits.planar_ratio_sq * l(1);
+  const bool noisy_slab =
+      l(0) <= limits.noisy_slab_ratio_sq * l(1) && l(0) <= limits.noisy_slab_thickness_m2;
+  if (!planar && !noisy_slab) {
     return Eigen::Vector3f::Zero();
   }
-  return eigenvector_of(spread.covariance, l(0));
+  Eigen::Vector3f normal = eigenvector_of(spread.covariance, l(0));
+  // A noisy slab is a wall only: a level laser's returns on everything it crosses (walls,
+  // cars, bushes) lie in a horizontal sheet as thick as its pitch noise, a false floor.
+  constexpr float kMaxSlabNormalZ = 0.5f;  // the normal at least 30 deg off vertical
+  if (!planar && std::abs(normal.z()) > kMaxSlabNormalZ) {
+    return Eigen::Vector3f::Zero();
+  }
+  return normal;
 }
 
-void VoxelGrid::estimate_shape(Voxel& voxel, const BlockNeighbourhood& around,
-                               float planar_ratio_sq, float line_ratio_sq, float min_points,
-                               bool level_slices) const noexcept {
+float VoxelGrid::estimate_shape(Voxel& voxel, const BlockNeighbourhood& around,
+                                const ShapeLimits& limits) const noexcept {
   const auto cell = unpack_cell(voxel.key);
   std::array<AxisSpan, 2> xs;
   std::array<AxisSpan, 2> ys;
@@ -751,26 +783,28 @@ void VoxelGrid::estimate_shape(Voxel& voxel, const BlockNeighbourhood& around,
       }
     }
   }
-  if (total.values[0] < min_points) {
+  if (total.values[0] < limits.min_points) {
     voxel.shape = LocalShape::kTooFewPoints;
-    return;
+    return 0.0f;
   }
   const Spread spread = spread_of(total);
   const Eigen::Vector3f& l = spread.eigenvalues_m2;
-  if (l(1) <= line_ratio_sq * l(2)) {
+  float thickness_m = 0.0f;
+  if (l(1) <= limits.line_ratio_sq * l(2)) {
     // Thin in two directions: points along one line (a scan line on a far surface).
     voxel.shape = LocalShape::kLinear;
     voxel.axis = eigenvector_of(spread.covariance, l(2));
-  } else if (l(0) <= planar_ratio_sq * l(1)) {
+  } else if (l(0) <= limits.planar_ratio_sq * l(1)) {
     // Wide in two directions, thin in the third: a surface.
     voxel.shape = LocalShape::kPlanar;
     voxel.axis = eigenvector_of(spread.covariance, l(0));
+    thickness_m = std::sqrt(l(0));
     // Within 10 deg of vertical: flat only because a level laser's slice holds its points.
     // Its shape within the slice decides: at most half as wide across as along, the trace of
     // a wall (a trunk's or a bush's is round).
     constexpr float kCosLevelSlice = 0.985F;
     constexpr float kTraceRatioSq = 0.25F;
-    if (level_slices && std::abs(voxel.axis.z()) >= kCosLevelSlice) {
+    if (limits.level_slices && std::abs(voxel.axis.z()) >= kCosLevelSlice) {
       const bool trace = l(1) <= kTraceRatioSq * l(2);
       voxel.shape = trace ? LocalShape::kLinear : LocalShape::kScattered;
       voxel.axis = eigenvector_of(spread.covariance, l(2));
@@ -778,6 +812,7 @@ void VoxelGrid::estimate_shape(Voxel& voxel, const BlockNeighbourhood& around,
   } else {
     voxel.shape = LocalShape::kScattered;
   }
+  return thickness_m;
 }
 
 }  // namespace blockmap::planes

@@ -144,6 +144,7 @@ WorldRun detect_in_world(const std::string& world, hal::sim::PoseNoise noise = {
       static_cast<unsigned long long>(stats.scattered_samples),
       static_cast<unsigned long long>(stats.sections_searched),
       static_cast<unsigned long long>(stats.section_planes));
+  std::printf("  surface noise %.4f m\n", stats.surface_noise_m);
   print_missed_faces(cloud.faces, planes, s);
   return run;
 }
@@ -222,15 +223,16 @@ TEST(PlaneRobustness, UscBlockWithPoseNoise) {
   EXPECT_EQ(run.score.faces_reported_twice, 0u);
 }
 
-// partial's floor, well below the 90 %: 13 of 28 faces, 12 of 13 planes real. Its
-// ground and most walls across the street are lost (docs/planes.md, Robustness, says why).
+// partial's floor, below the 90 %: 19 of 28 faces, 19 of 20 planes real. Its ground
+// (seen only by the level laser, at grazing range) and the walls glimpsed edge-on are lost
+// (docs/planes.md, Robustness, says why).
 TEST(PlaneRobustness, PartialWithPoseNoise) {
 #if defined(BLOCKMAP_QUICK_WORLDS)
   GTEST_SKIP() << "the optimized host trees drive partial with pose noise";
 #endif
   const WorldRun run = detect_in_world("partial", kScanPoseNoise);
-  EXPECT_GE(run.score.recall(), 0.40);
-  EXPECT_GE(run.score.precision(), 0.80);
+  EXPECT_GE(run.score.recall(), 0.65);
+  EXPECT_GE(run.score.precision(), 0.90);
   EXPECT_EQ(run.score.faces_reported_twice, 0u);
 }
 
@@ -240,7 +242,7 @@ TEST(PlaneRobustness, BenningWithPoseNoise) {
 #endif
   const WorldRun run = detect_in_world("benning", kScanPoseNoise);
   EXPECT_GE(run.score.recall(), 0.80);
-  EXPECT_GE(run.score.precision(), 0.80);
+  EXPECT_GE(run.score.precision(), 0.90);
   EXPECT_EQ(run.score.faces_reported_twice, 0u);
 }
 

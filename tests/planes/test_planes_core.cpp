@@ -425,7 +425,10 @@ TEST(VoxelGrid, ShapesSumTheWholeNeighbourhoodAcrossBlockBorders) {
   grid.init(arena, 0.2, 4096);
   grid.add_points(points);
   grid.compact();
-  grid.estimate_shapes(10, 0.3, 0.15, false);
+  ShapeOptions options;
+  options.min_points = 10;
+  options.coarse_second_look = false;
+  grid.estimate_shapes(options);
   ASSERT_GT(grid.size(), 300u);
   // Every sample once, block by block, each block's range holding exactly its own cells.
   std::size_t in_blocks = 0;
@@ -461,6 +464,68 @@ TEST(VoxelGrid, ShapesSumTheWholeNeighbourhoodAcrossBlockBorders) {
     planar += voxel.shape == LocalShape::kPlanar ? 1 : 0;
   }
   EXPECT_GT(planar, grid.size() / 2);
+}
+
+// A floor 20 m x 20 m at x, y >= 20 m with Gaussian thickness, and a wall band 1 m high
+// along y at x = 0 (what a level laser leaves on a wall, blurred by pose errors): 0.1 m RMS
+// thick, too thick to be flat at 0.6 m, and between the crisp and the noisy slab ratio at
+// 2.4 m (sqrt(l0 / l1) about 0.35).
+std::vector<Eigen::Vector3f> floor_and_blurred_wall_band(float floor_rms_m, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  std::normal_distribution<float> floor_noise(0.0f, floor_rms_m);
+  std::normal_distribution<float> wall_noise(0.0f, 0.1f);
+  std::vector<Eigen::Vector3f> points;
+  points.reserve(260000);
+  for (int i = 0; i < 200000; ++i) {
+    points.emplace_back(20.0f + 20.0f * unit(rng), 20.0f + 20.0f * unit(rng), floor_noise(rng));
+  }
+  for (int i = 0; i < 60000; ++i) {
+    points.emplace_back(wall_noise(rng), 12.0f * unit(rng), 0.3f + unit(rng));
+  }
+  return points;
+}
+
+struct ShapeCounts {
+  std::size_t wall_samples = 0;
+  std::size_t wall_planar = 0;  // with a normal within 10 deg of x
+  double surface_noise_m = 0.0;
+};
+
+ShapeCounts shapes_of_floor_and_wall_band(float floor_rms_m) {
+  constexpr std::size_t kSamples = std::size_t{1} << 17;
+  Arena arena(VoxelGrid::arena_bytes(kSamples));
+  VoxelGrid grid;
+  grid.init(arena, 0.2, kSamples);
+  grid.add_points(floor_and_blurred_wall_band(floor_rms_m, 7));
+  grid.compact();
+  grid.estimate_shapes(ShapeOptions{});
+  ShapeCounts counts;
+  counts.surface_noise_m = grid.surface_noise_m();
+  for (const Voxel& voxel : grid.voxels()) {
+    if (grid.centroid_m(voxel).x() > 10.0f) {
+      continue;  // the floor
+    }
+    ++counts.wall_samples;
+    counts.wall_planar +=
+        voxel.shape == LocalShape::kPlanar && std::abs(voxel.axis.x()) > 0.985f ? 1 : 0;
+  }
+  return counts;
+}
+
+// The second look knows how blurred the cloud is: in a cloud whose floor is 3 cm thick (pose
+// errors blur every surface alike) the wall band is a wall; in a crisp cloud (3 mm) a slab
+// that thick is not a surface (a hedge, a row of bushes) and stays scattered.
+TEST(VoxelGrid, ABlurredWallBandIsASurfaceOnlyInACloudBlurredAsMuch) {
+  const ShapeCounts blurred = shapes_of_floor_and_wall_band(0.03f);
+  EXPECT_NEAR(blurred.surface_noise_m, 0.03, 0.006);
+  ASSERT_GT(blurred.wall_samples, 1000u);
+  EXPECT_GT(blurred.wall_planar, blurred.wall_samples * 9 / 10);
+
+  const ShapeCounts crisp = shapes_of_floor_and_wall_band(0.003f);
+  EXPECT_NEAR(crisp.surface_noise_m, 0.003, 0.001);
+  ASSERT_GT(crisp.wall_samples, 1000u);
+  EXPECT_LT(crisp.wall_planar, crisp.wall_samples / 10);
 }
 
 TEST(VoxelGrid, CountingVoxelsBeforeInitGivesTheGridsOwnCount) {

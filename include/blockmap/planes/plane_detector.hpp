@@ -39,6 +39,7 @@ struct DetectionStats {
   std::uint64_t section_planes = 0;
   std::uint64_t planes = 0;
   std::uint64_t planes_excluded = 0;  // known not to be surfaces (set_exclusions)
+  double surface_noise_m = 0.0;       // VoxelGrid::surface_noise_m(): how blurred the cloud is
 };
 
 class PlaneDetector {

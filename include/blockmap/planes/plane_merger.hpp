@@ -97,6 +97,8 @@ class PlaneMerger {
   // Polygon of `points` (3D, on or near the plane of `fit`) into `candidate`.
   void set_polygon(Candidate& candidate, std::span<const Eigen::Vector3d> points) noexcept;
   [[nodiscard]] bool can_merge(const Candidate& big, const Candidate& small) noexcept;
+  // The RMS distance of a candidate's points that counts as its noise when merging.
+  [[nodiscard]] double noise_rmse_m(const Candidate& c) const noexcept;
   // True when `small` lies wholly inside the noise slab of `big` and is much smaller.
   [[nodiscard]] bool within_noise_slab(const Candidate& big, const Candidate& small) const noexcept;
   void absorb(Candidate& big, const Candidate& small) noexcept;

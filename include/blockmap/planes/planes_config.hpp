@@ -52,6 +52,12 @@ struct PlanesConfig {
   // Scattered samples get a second look at the scale of 12 samples (walls blurred by pose
   // errors are flat at that scale).
   bool coarse_second_look = true;
+  // The second look also takes a looser slab (sqrt(l0 / l1) up to max_noisy_slab_ratio) when
+  // it is at most noisy_slab_per_noise times the cloud's surface noise thick (RMS): the
+  // noise is measured on the surfaces found at the fine scale, so a crisp cloud's hedge stays
+  // scattered while a cloud blurred by pose errors gets its walls back.
+  double max_noisy_slab_ratio = 0.5;
+  double noisy_slab_per_noise = 4.0;
 
   // A cell of the accumulator is a plane when its votes (points, summed over the cell and its
   // two neighbours in d) reach this threshold and no neighbouring cell has more.

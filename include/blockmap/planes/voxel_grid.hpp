@@ -154,6 +154,20 @@ struct alignas(16) CentredSums {
   }
 };
 
+// How VoxelGrid::estimate_shapes() classifies a sample (PlanesConfig holds the user's values).
+struct ShapeOptions {
+  std::uint32_t min_points = 5;      // in the 3 x 3 x 3 neighbourhood, for any shape
+  double max_planarity_ratio = 0.3;  // sqrt(l0 / l1) of a planar neighbourhood, at most
+  double max_line_ratio = 0.15;      // sqrt(l1 / l2) of a linear neighbourhood, at most
+  bool coarse_second_look = true;
+  // The coarse look also takes a looser slab, up to this sqrt(l0 / l1), when its RMS
+  // thickness is at most noisy_slab_per_noise times the cloud's surface noise: a wall blurred
+  // by pose errors, not a hedge in a crisp cloud.
+  double max_noisy_slab_ratio = 0.5;
+  double noisy_slab_per_noise = 4.0;
+  bool level_slices = false;  // every point from a level 2D laser (walls_from_lines)
+};
+
 class VoxelGrid {
  public:
   struct Counters {
@@ -187,12 +201,15 @@ class VoxelGrid {
   // and before reading voxels(), blocks or shapes.
   void compact() noexcept;
   // Classifies every sample by the moments of its 3 x 3 x 3 neighbourhood (after compact()).
-  // With coarse_second_look, samples that are scattered get the shape of the 3 x 3 x 3 blocks
-  // around their block when that is planar. With level_slices (all points from level 2D
-  // lasers, walls_from_lines), a neighbourhood flat because it lies in a horizontal slice is
-  // classified by its shape within the slice: thin across, a line (a wall's trace).
-  void estimate_shapes(std::uint32_t min_points, double max_planarity_ratio, double max_line_ratio,
-                       bool coarse_second_look, bool level_slices = false) noexcept;
+  // With coarse_second_look, samples that are scattered then get the shape of the 3 x 3 x 3
+  // blocks around their block when that is planar. With level_slices (all points from level
+  // 2D lasers, walls_from_lines), a neighbourhood flat because it lies in a horizontal slice
+  // is classified by its shape within the slice: thin across, a line (a wall's trace).
+  void estimate_shapes(const ShapeOptions& options) noexcept;
+  // The cloud's surface noise: the mean RMS thickness of the neighbourhoods that the last
+  // estimate_shapes() found planar at the fine scale (0 when none were). Sensor noise alone
+  // gives millimetres; pose errors between scans give centimetres.
+  [[nodiscard]] double surface_noise_m() const noexcept { return surface_noise_m_; }
 
   // The samples of the last compact(); an id is an index into this span.
   [[nodiscard]] std::span<Voxel> voxels() noexcept { return voxels_.first(count_); }
@@ -266,15 +283,29 @@ class VoxelGrid {
   };
   void load_neighbourhood(std::int64_t bx, std::int64_t by, std::int64_t bz, std::uint64_t live,
                           BlockNeighbourhood& out) const noexcept;
-  void estimate_shape(Voxel& voxel, const BlockNeighbourhood& around, float planar_ratio_sq,
-                      float line_ratio_sq, float min_points, bool level_slices) const noexcept;
+  // The squared limits of one estimate_shapes() pass, in float as the shape pass works.
+  struct ShapeLimits {
+    float planar_ratio_sq = 0.0f;
+    float line_ratio_sq = 0.0f;
+    float min_points = 0.0f;
+    bool level_slices = false;
+    float noisy_slab_ratio_sq = 0.0f;      // the coarse look's looser ratio for thin slabs
+    float noisy_slab_thickness_m2 = 0.0f;  // ... at most this thick (variance)
+  };
+  // The fine shape of every sample; adds up the planar samples' thicknesses and count.
+  void estimate_fine_shapes(const ShapeLimits& limits, double& thickness_sum_m,
+                            std::uint64_t& planar_count) noexcept;
+  // Sets the sample's shape; returns its neighbourhood's RMS thickness when planar, else 0.
+  float estimate_shape(Voxel& voxel, const BlockNeighbourhood& around,
+                       const ShapeLimits& limits) const noexcept;
   [[nodiscard]] CentredSums sum_block(std::uint32_t block) const noexcept;
   // The planar normal of the 3 x 3 x 3 blocks around block (bx, by, bz), or zero when they
   // are not planar. Sums the blocks it needs first.
   [[nodiscard]] Eigen::Vector3f coarse_normal(std::int64_t bx, std::int64_t by, std::int64_t bz,
-                                              float planar_ratio_sq, float min_points) noexcept;
+                                              const ShapeLimits& limits) noexcept;
 
   double voxel_size_m_ = 0.0;
+  double surface_noise_m_ = 0.0;
   float inverse_size_ = 0.0f;
   float size_m_ = 0.0f;
   CellKey last_key_ = 0;
