@@ -507,8 +507,9 @@ ShapeCounts shapes_of_floor_and_wall_band(float floor_rms_m) {
       continue;  // the floor
     }
     ++counts.wall_samples;
-    counts.wall_planar +=
-        voxel.shape == LocalShape::kPlanar && std::abs(voxel.axis.x()) > 0.985f ? 1 : 0;
+    if (voxel.shape == LocalShape::kPlanar && std::abs(voxel.axis.x()) > 0.985f) {
+      ++counts.wall_planar;
+    }
   }
   return counts;
 }
