@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <string>
 
 #include "blockmap/core/check.hpp"
@@ -16,6 +17,11 @@ std::string validate(const LocalizerConfig& config) {
   if (!(config.height_smoothing_s >= 0.0) || !(config.max_speed_mps > 0.0)) {
     return "height_smoothing_s must be >= 0 and max_speed_mps > 0";
   }
+  if (!(config.map_pose_smoothing_s >= 0.0) || !(config.map_pose_snap_m > 0.0) ||
+      !(config.map_pose_snap_rad > 0.0) || config.map_pose_capacity < 2) {
+    return "map_pose_smoothing_s must be >= 0, map_pose_snap_m and map_pose_snap_rad > 0, and "
+           "map_pose_capacity at least 2";
+  }
   return {};
 }
 
@@ -27,17 +33,20 @@ void Localizer::init(Arena& arena, const LocalizerConfig& config) {
   attitudes_ =
       arena.allocate_array<Attitude>(config.filter.history_steps + 1, "localize.localizer");
   scratch_ = arena.allocate_array<Pose2>(config.filter.history_steps, "localize.localizer");
+  map_poses_ = arena.allocate_array<Pose3>(config.map_pose_capacity, "localize.map_poses");
 }
 
 std::size_t Localizer::arena_bytes(const LocalizerConfig& config) noexcept {
   constexpr std::size_t kAlignment = 64;
   return ParticleFilter::arena_bytes(config.filter) +
          (config.filter.history_steps + 1) * sizeof(Attitude) +
-         config.filter.history_steps * sizeof(Pose2) + 2 * kAlignment;
+         config.filter.history_steps * sizeof(Pose2) + config.map_pose_capacity * sizeof(Pose3) +
+         3 * kAlignment;
 }
 
 std::size_t Localizer::memory_bytes() const noexcept {
-  return filter_.memory_bytes() + attitudes_.size_bytes() + scratch_.size_bytes();
+  return filter_.memory_bytes() + attitudes_.size_bytes() + scratch_.size_bytes() +
+         map_poses_.size_bytes();
 }
 
 void Localizer::on_base(const msg::OdometrySample& odometry, const msg::ImuSample& imu) noexcept {
@@ -63,6 +72,7 @@ void Localizer::on_base(const msg::OdometrySample& odometry, const msg::ImuSampl
   last_fore_aft_m_ = odometry.fore_aft_distance_m;
   filter_.predict(stamp_ns, distance_m, imu.yaw_rate_radps);
   record_if_stepped();
+  advance_map_pose(stamp_ns, distance_m, imu.yaw_rate_radps);
 }
 
 GpsOutcome Localizer::on_fix(const GpsObservation& fix, double up_m) noexcept {
@@ -80,7 +90,139 @@ GpsOutcome Localizer::on_fix(const GpsObservation& fix, double up_m) noexcept {
     last_height_ns_ = fix.stamp_ns;
   }
   record_if_stepped();
+  if (outcome != GpsOutcome::kRejected) {
+    pull_map_pose();
+  }
   return outcome;
+}
+
+namespace {
+
+double wrapped(double angle_rad) noexcept {
+  return std::remainder(angle_rad, 2.0 * std::numbers::pi);
+}
+
+}  // namespace
+
+void Localizer::advance_map_pose(TimestampNs stamp_ns, double distance_m,
+                                 double yaw_rate_radps) noexcept {
+  if (!filter_.started()) {
+    return;
+  }
+  if (!map_started_) {
+    pull_map_pose();  // starts at the estimate
+    return;
+  }
+  // Dead reckoning with the filter's calibration of the odometry, at the mid-step heading.
+  const double dt_s = std::max(0.0, seconds_from_ns(stamp_ns - map_pose_.stamp_ns));
+  const double turn_rad = (yaw_rate_radps - yaw_rate_bias_radps_) * dt_s;
+  const double heading_rad = map_pose_.yaw_rad + 0.5 * turn_rad;
+  const double travel_m = distance_m * distance_scale_;
+  map_pose_.x_m += travel_m * std::cos(heading_rad);
+  map_pose_.y_m += travel_m * std::sin(heading_rad);
+  map_pose_.yaw_rad = wrapped(map_pose_.yaw_rad + turn_rad);
+  // The share of the correction due in dt (an exponential approach to the estimate).
+  const double share =
+      config_.map_pose_smoothing_s > 0.0 ? std::min(1.0, dt_s / config_.map_pose_smoothing_s) : 1.0;
+  map_pose_.x_m += share * pending_x_m_;
+  map_pose_.y_m += share * pending_y_m_;
+  map_pose_.yaw_rad = wrapped(map_pose_.yaw_rad + share * pending_yaw_rad_);
+  pending_x_m_ -= share * pending_x_m_;
+  pending_y_m_ -= share * pending_y_m_;
+  pending_yaw_rad_ -= share * pending_yaw_rad_;
+  map_pose_.stamp_ns = stamp_ns;
+  keep_map_pose();
+}
+
+void Localizer::pull_map_pose() noexcept {
+  if (!filter_.started()) {
+    return;
+  }
+  const Pose2 estimate = filter_.estimate();
+  distance_scale_ = filter_.mean_distance_scale();
+  yaw_rate_bias_radps_ = filter_.mean_yaw_rate_bias_radps();
+  const double gap_x_m = estimate.x_m - map_pose_.x_m;
+  const double gap_y_m = estimate.y_m - map_pose_.y_m;
+  const double gap_yaw_rad = wrapped(estimate.yaw_rad - map_pose_.yaw_rad);
+  const bool snap = !map_started_ || std::hypot(gap_x_m, gap_y_m) > config_.map_pose_snap_m ||
+                    std::abs(gap_yaw_rad) > config_.map_pose_snap_rad;
+  if (!snap) {
+    pending_x_m_ = gap_x_m;
+    pending_y_m_ = gap_y_m;
+    pending_yaw_rad_ = gap_yaw_rad;
+    return;
+  }
+  counters_.map_pose_snaps += map_started_ ? 1 : 0;
+  map_started_ = true;
+  map_pose_.stamp_ns = estimate.stamp_ns;
+  map_pose_.x_m = estimate.x_m;
+  map_pose_.y_m = estimate.y_m;
+  map_pose_.yaw_rad = estimate.yaw_rad;
+  pending_x_m_ = 0.0;
+  pending_y_m_ = 0.0;
+  pending_yaw_rad_ = 0.0;
+  keep_map_pose();
+}
+
+void Localizer::keep_map_pose() noexcept {
+  // With the attitude and height of this sample (the base pitches at 1-2 Hz: the filter's
+  // history steps, 4 Hz, would alias it).
+  map_pose_.z_m = height_m_;
+  map_pose_.roll_rad = roll_rad_;
+  map_pose_.pitch_rad = pitch_rad_;
+  if (map_count_ > 0) {
+    Pose3& newest = map_poses_[(map_first_ + map_count_ - 1) % map_poses_.size()];
+    if (newest.stamp_ns == map_pose_.stamp_ns) {
+      newest = map_pose_;  // a snap at the stamp of the last sample replaces it
+      return;
+    }
+  }
+  if (map_count_ == map_poses_.size()) {
+    map_first_ = (map_first_ + 1) % map_poses_.size();
+    --map_count_;
+  }
+  map_poses_[(map_first_ + map_count_) % map_poses_.size()] = map_pose_;
+  ++map_count_;
+}
+
+bool Localizer::map_pose_at(TimestampNs stamp_ns, Pose3& out) const noexcept {
+  if (map_count_ == 0) {
+    return false;
+  }
+  const auto at = [this](std::size_t i) -> const Pose3& {
+    return map_poses_[(map_first_ + i) % map_poses_.size()];
+  };
+  if (stamp_ns < at(0).stamp_ns || stamp_ns > at(map_count_ - 1).stamp_ns) {
+    return false;
+  }
+  // The last pose at or before the stamp, and the next one.
+  std::size_t low = 0;
+  std::size_t high = map_count_;
+  while (high - low > 1) {
+    const std::size_t mid = (low + high) / 2;
+    if (at(mid).stamp_ns <= stamp_ns) {
+      low = mid;
+    } else {
+      high = mid;
+    }
+  }
+  const Pose3& a = at(low);
+  if (low + 1 == map_count_ || a.stamp_ns == stamp_ns) {
+    out = a;
+    out.stamp_ns = stamp_ns;
+    return true;
+  }
+  const Pose3& b = at(low + 1);
+  const double f =
+      static_cast<double>(stamp_ns - a.stamp_ns) / static_cast<double>(b.stamp_ns - a.stamp_ns);
+  out.stamp_ns = stamp_ns;
+  out.x_m = a.x_m + f * (b.x_m - a.x_m);
+  out.y_m = a.y_m + f * (b.y_m - a.y_m);
+  out.z_m = a.z_m + f * (b.z_m - a.z_m);
+  out.roll_rad = a.roll_rad + f * (b.roll_rad - a.roll_rad);
+  out.pitch_rad = a.pitch_rad + f * (b.pitch_rad - a.pitch_rad);
+  out.yaw_rad = wrapped(a.yaw_rad + f * wrapped(b.yaw_rad - a.yaw_rad));
+  return true;
 }
 
 void Localizer::record_if_stepped() noexcept {

@@ -269,7 +269,7 @@ bool Mapper::pose_horizon(TimestampNs& out) const noexcept {
 
 bool Mapper::pose_at(TimestampNs stamp_ns, localize::Pose3& out) const noexcept {
   if (config_.pose_source == PoseSource::kLocalizer) {
-    return localizer_.pose_at(stamp_ns, out);
+    return localizer_.map_pose_at(stamp_ns, out);
   }
   for (std::size_t k = 1; k < pose_count_; ++k) {
     const localize::Pose3& a = poses_[(pose_first_ + k - 1) % poses_.size()];

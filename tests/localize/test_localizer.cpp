@@ -2,7 +2,10 @@
 // increments, the base's attitude and a GPS height on every pose.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <numbers>
 #include <vector>
 
 #include "blockmap/core/arena.hpp"
@@ -34,27 +37,45 @@ constexpr double kPitchRad = 0.04;  // the base leaning forward
 constexpr double kRollRad = -0.01;
 constexpr double kGroundUpM = 12.0;  // the ground's height in the local frame
 
-// Feeds the synthetic drive as the base and the receiver report it: integrated distance,
-// IMU attitude, fixes with the antenna's height. `reset_at` (a sample index) makes the base
-// restart its integrators there.
-void feed(Localizer& localizer, const std::vector<synthetic::Sample>& samples,
-          std::size_t reset_at = 0) {
-  double integrated_m = 100.0;  // the base's counter need not start at zero
-  for (std::size_t k = 0; k < samples.size(); ++k) {
-    const synthetic::Sample& s = samples[k];
-    integrated_m = k == reset_at && reset_at > 0 ? 0.0 : integrated_m + s.distance_m;
+// The base's pitch at a stamp: leaning forward, rocking at 1.2 Hz as the RMP does.
+double rocking_pitch_rad(TimestampNs stamp_ns) {
+  return kPitchRad + 0.02 * std::sin(2.0 * std::numbers::pi * 1.2 * seconds_from_ns(stamp_ns));
+}
+
+// Feeds the synthetic drive a sample at a time as the base and the receiver report it:
+// integrated distance, IMU attitude (steady, or rocking), fixes with the antenna's height.
+class Feeder {
+ public:
+  Feeder(Localizer& localizer, bool rocking) : localizer_(localizer), rocking_(rocking) {}
+  // `reset`: the base restarts its integrators at this sample.
+  void next(const synthetic::Sample& s, bool reset = false) {
+    integrated_m_ = reset ? 0.0 : integrated_m_ + s.distance_m;
     msg::OdometrySample odometry;
     odometry.header.stamp_ns = s.stamp_ns;
-    odometry.fore_aft_distance_m = integrated_m;
+    odometry.fore_aft_distance_m = integrated_m_;
     msg::ImuSample imu;
     imu.header.stamp_ns = s.stamp_ns;
     imu.yaw_rate_radps = s.yaw_rate_radps;
-    imu.pitch_rad = kPitchRad;
+    imu.pitch_rad = rocking_ ? rocking_pitch_rad(s.stamp_ns) : kPitchRad;
     imu.roll_rad = kRollRad;
-    localizer.on_base(odometry, imu);
+    localizer_.on_base(odometry, imu);
     if (s.has_fix) {
-      static_cast<void>(localizer.on_fix(s.fix, kGroundUpM + LocalizerConfig{}.antenna_height_m));
+      static_cast<void>(localizer_.on_fix(s.fix, kGroundUpM + LocalizerConfig{}.antenna_height_m));
     }
+  }
+
+ private:
+  Localizer& localizer_;
+  bool rocking_ = false;
+  double integrated_m_ = 100.0;  // the base's counter need not start at zero
+};
+
+// The whole drive; `reset_at` (a sample index) makes the base restart its integrators there.
+void feed(Localizer& localizer, const std::vector<synthetic::Sample>& samples,
+          std::size_t reset_at = 0) {
+  Feeder feeder(localizer, false);
+  for (std::size_t k = 0; k < samples.size(); ++k) {
+    feeder.next(samples[k], k == reset_at && reset_at > 0);
   }
 }
 
@@ -114,11 +135,92 @@ TEST(Localizer, ASampleOlderThanTheLastIsLeftOutAndCounted) {
   EXPECT_EQ(fixture.localizer.counters().base_samples, 1u);
 }
 
+// The mapper draws scans with map_pose_at(): between fixes it moves with the odometry, so
+// that the estimate's step at each fix (the particles reweighted) does not smear the map; over
+// seconds it follows the estimate; its attitude is each base sample's.
+TEST(Localizer, MapPosesMoveSmoothlyWhereTheEstimateStepsAtFixes) {
+  synthetic::DriveOptions options;
+  options.duration_s = 120.0;
+  const std::vector<synthetic::Sample> samples = synthetic::drive(options);
+  Fixture fixture;
+  Localizer& localizer = fixture.localizer;
+  double largest_map_step_m = 0.0;
+  double largest_estimate_step_m = 0.0;
+  double sq_gap_m2 = 0.0;
+  double sq_error_m2 = 0.0;
+  double sq_estimate_error_m2 = 0.0;
+  std::uint64_t snaps_in_first_10_s = 0;
+  std::size_t after_a_minute = 0;
+  bool have_last = false;
+  Pose3 last_map;
+  Pose2 last_estimate;
+  Feeder feeder(localizer, true);
+  for (const synthetic::Sample& sample : samples) {
+    feeder.next(sample);
+    Pose3 map;
+    if (!localizer.map_pose_at(sample.stamp_ns, map)) {
+      continue;
+    }
+    EXPECT_NEAR(map.pitch_rad, rocking_pitch_rad(sample.stamp_ns), 1e-9);
+    const Pose2 estimate = localizer.filter().estimate();
+    if (sample.stamp_ns <= 10 * kNanosecondsPerSecond) {
+      snaps_in_first_10_s = localizer.counters().map_pose_snaps;
+    }
+    if (have_last && sample.stamp_ns > 10 * kNanosecondsPerSecond) {
+      largest_map_step_m =
+          std::max(largest_map_step_m, std::hypot(map.x_m - last_map.x_m, map.y_m - last_map.y_m));
+      largest_estimate_step_m =
+          std::max(largest_estimate_step_m,
+                   std::hypot(estimate.x_m - last_estimate.x_m, estimate.y_m - last_estimate.y_m));
+    }
+    if (sample.stamp_ns >= 60 * kNanosecondsPerSecond) {
+      sq_gap_m2 += std::pow(map.x_m - estimate.x_m, 2) + std::pow(map.y_m - estimate.y_m, 2);
+      sq_error_m2 +=
+          std::pow(map.x_m - sample.truth.x_m, 2) + std::pow(map.y_m - sample.truth.y_m, 2);
+      sq_estimate_error_m2 += std::pow(estimate.x_m - sample.truth.x_m, 2) +
+                              std::pow(estimate.y_m - sample.truth.y_m, 2);
+      ++after_a_minute;
+    }
+    have_last = true;
+    last_map = map;
+    last_estimate = estimate;
+  }
+  ASSERT_GT(after_a_minute, 5000u);
+  // 1.2 m/s for 10 ms is 12 mm: the map pose moves that much and a little correction.
+  EXPECT_LT(largest_map_step_m, 0.02);
+  EXPECT_GT(largest_estimate_step_m, 0.05) << "the estimate steps at fixes (else no test)";
+  // It lags the estimate by its smoothing (5 s: 0.6 m RMS here) and is no farther from the
+  // truth (0.81 m RMS against the estimate's 0.84 m).
+  const auto n = static_cast<double>(after_a_minute);
+  EXPECT_LT(std::sqrt(sq_gap_m2 / n), 1.0);
+  EXPECT_LT(std::sqrt(sq_error_m2 / n), std::sqrt(sq_estimate_error_m2 / n) + 0.1);
+  // It moved to the estimate at once only while the filter found its heading.
+  EXPECT_EQ(localizer.counters().map_pose_snaps, snaps_in_first_10_s);
+}
+
+TEST(Localizer, MapPosesReachBackTheirCapacityOnly) {
+  LocalizerConfig config = small_config();
+  config.map_pose_capacity = 100;  // one second of base samples
+  Fixture fixture(config);
+  synthetic::DriveOptions options;
+  options.duration_s = 30.0;
+  feed(fixture.localizer, synthetic::drive(options));
+  Pose3 pose;
+  const TimestampNs newest_ns = fixture.localizer.filter().last_stamp_ns();
+  EXPECT_TRUE(fixture.localizer.map_pose_at(newest_ns, pose));
+  EXPECT_TRUE(fixture.localizer.map_pose_at(newest_ns - kNanosecondsPerSecond / 2, pose));
+  EXPECT_FALSE(fixture.localizer.map_pose_at(newest_ns - 2 * kNanosecondsPerSecond, pose));
+  EXPECT_FALSE(fixture.localizer.map_pose_at(newest_ns + 1, pose));
+}
+
 TEST(LocalizerConfig, ValidateNamesWhatIsWrong) {
   LocalizerConfig config;
   EXPECT_EQ(validate(config), "");
   config.max_speed_mps = 0.0;
   EXPECT_NE(validate(config).find("max_speed_mps"), std::string::npos);
+  config = LocalizerConfig{};
+  config.map_pose_capacity = 1;
+  EXPECT_NE(validate(config).find("map_pose_capacity"), std::string::npos);
   config = LocalizerConfig{};
   config.filter.particle_count = 1;
   EXPECT_NE(validate(config).find("particle_count"), std::string::npos);

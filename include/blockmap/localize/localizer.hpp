@@ -40,6 +40,16 @@ struct LocalizerConfig {
   // A fore/aft increment faster than this is the base resetting its integrators (power
   // cycle, a reset command), not motion: it is skipped and counted.
   double max_speed_mps = 10.0;
+  // The mapper's poses (map_pose_at): odometry, with the filter's distance scale and gyro
+  // bias, drawn toward the filter's estimate over map_pose_smoothing_s. The estimate moves
+  // 0.1-0.9 m at a fix (4 Hz), and scans drawn at it smear every wall by as much. A map pose
+  // farther than the snap limits from the estimate moves to it at once (the start, a
+  // recovery).
+  double map_pose_smoothing_s = 5.0;
+  double map_pose_snap_m = 3.0;
+  double map_pose_snap_rad = 0.35;  // 20 deg
+  // Map poses kept, one per base sample: how far back map_pose_at() reaches (10 s at 100 Hz).
+  std::size_t map_pose_capacity = 1024;
 };
 
 // Empty when usable, otherwise what is wrong.
@@ -49,6 +59,7 @@ struct LocalizerCounters {
   std::uint64_t base_samples = 0;
   std::uint64_t odometry_jumps = 0;  // integrator resets skipped
   std::uint64_t stale_samples = 0;   // older than the last one, left out
+  std::uint64_t map_pose_snaps = 0;  // map poses moved to the estimate at once
 };
 
 class Localizer {
@@ -66,6 +77,10 @@ class Localizer {
   std::size_t drain_final(std::span<Pose3> out) noexcept;
   std::size_t smoothed_window(std::span<Pose3> out) const noexcept;
   bool pose_at(TimestampNs stamp_ns, Pose3& out) const noexcept;
+  // The pose to draw a scan with: smooth from one base sample to the next (odometry between
+  // fixes), near the filter's estimate over seconds, with the base's attitude of that sample.
+  // False before the filter starts and outside the last map_pose_capacity base samples.
+  bool map_pose_at(TimestampNs stamp_ns, Pose3& out) const noexcept;
 
   [[nodiscard]] const ParticleFilter& filter() const noexcept { return filter_; }
   [[nodiscard]] const LocalizerCounters& counters() const noexcept { return counters_; }
@@ -80,6 +95,12 @@ class Localizer {
     float pitch_rad = 0.0f;
   };
   void record_if_stepped() noexcept;
+  // One base sample's motion for the map pose, and the share of the pending correction due.
+  void advance_map_pose(TimestampNs stamp_ns, double distance_m, double yaw_rate_radps) noexcept;
+  // After a fix: the gap from the map pose to the filter's estimate becomes the correction to
+  // make over map_pose_smoothing_s (or is closed at once beyond the snap limits).
+  void pull_map_pose() noexcept;
+  void keep_map_pose() noexcept;
   [[nodiscard]] Attitude attitude_at(TimestampNs stamp_ns) const noexcept;
   [[nodiscard]] Pose3 completed(const Pose2& pose) const noexcept;
 
@@ -99,6 +120,18 @@ class Localizer {
   std::size_t attitude_first_ = 0;
   std::size_t attitude_count_ = 0;
   std::span<Pose2> scratch_;  // working space for the planar poses (not state)
+  // The map pose: the newest, the correction still to make, the filter's odometry
+  // calibration as of the last fix, and a ring of the last map_pose_capacity of them.
+  bool map_started_ = false;
+  Pose3 map_pose_;
+  double pending_x_m_ = 0.0;
+  double pending_y_m_ = 0.0;
+  double pending_yaw_rad_ = 0.0;
+  double distance_scale_ = 1.0;
+  double yaw_rate_bias_radps_ = 0.0;
+  std::span<Pose3> map_poses_;  // a ring, oldest at map_first_
+  std::size_t map_first_ = 0;
+  std::size_t map_count_ = 0;
 };
 
 }  // namespace blockmap::localize
