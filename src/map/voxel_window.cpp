@@ -57,6 +57,8 @@ void VoxelWindow::init(Arena& arena, const VoxelWindowConfig& config) {
   table_ = arena.allocate_array<TableSlot>(slots, "window.index");
   table_shift_ = 64U - static_cast<std::uint32_t>(std::countr_zero(slots));
   chunk_ = arena.allocate_array<planes::VoxelSums>(kEvictionChunk, "window.eviction_chunk");
+  touched_ = arena.allocate_array<std::uint32_t>(config.max_samples, "window.touched");
+  touched_flag_ = arena.allocate_array<std::uint8_t>(config.max_samples, "window.touched");
   // Every sample is free: the free list runs through the pool in order.
   for (std::size_t i = 0; i < next_.size(); ++i) {
     next_[i] = i + 1 < next_.size() ? static_cast<std::uint32_t>(i + 1) : kNone;
@@ -69,7 +71,8 @@ std::size_t VoxelWindow::arena_bytes(const VoxelWindowConfig& config) noexcept {
   return std::size_t{config.tiles_across} * config.tiles_across * sizeof(TileSlot) +
          config.max_samples * (sizeof(planes::VoxelSums) + sizeof(std::uint32_t)) +
          table_slots(config.max_samples) * sizeof(TableSlot) +
-         kEvictionChunk * sizeof(planes::VoxelSums) + 5 * kSlack;
+         kEvictionChunk * sizeof(planes::VoxelSums) +
+         config.max_samples * (sizeof(std::uint32_t) + sizeof(std::uint8_t)) + 7 * kSlack;
 }
 
 std::int64_t VoxelWindow::tile_of_voxel(std::int64_t voxel) const noexcept {
@@ -232,6 +235,10 @@ void VoxelWindow::add_point(const Eigen::Vector3f& point_m) noexcept {
           .matrix()
           .cast<float>();
   const Eigen::Vector3f local = point_m - centre_m;
+  if (touched_flag_[sample] == 0) {
+    touched_flag_[sample] = 1;
+    touched_[touched_count_++] = sample;
+  }
   planes::VoxelSums& sums = samples_[sample];
   ++sums.point_count;
   sums.sum_m[0] += local.x();
@@ -244,6 +251,13 @@ void VoxelWindow::add_point(const Eigen::Vector3f& point_m) noexcept {
   sums.sum_outer_m2[4] += local.y() * local.z();
   sums.sum_outer_m2[5] += local.z() * local.z();
   ++counters_.points_added;
+}
+
+void VoxelWindow::forget_touched() noexcept {
+  for (std::size_t i = 0; i < touched_count_; ++i) {
+    touched_flag_[touched_[i]] = 0;
+  }
+  touched_count_ = 0;
 }
 
 void VoxelWindow::add_points(std::span<const Eigen::Vector3f> points_m) noexcept {

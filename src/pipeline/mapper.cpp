@@ -49,6 +49,7 @@ planes::PlanesConfig detector_config(const MapperConfig& config) noexcept {
   planes.walls_from_lines = planes.walls_from_lines || only_level_lasers(config);
   planes.max_samples = config.window.max_samples;
   planes.max_blocks = std::min(planes.max_blocks, planes.max_samples);
+  planes.keep_shapes = config.incremental_extraction;
   return planes;
 }
 
@@ -378,9 +379,7 @@ void Mapper::project(const QueuedScan& queued) noexcept {
 void Mapper::extract(TimestampNs stamp_ns) noexcept {
   ++counters_.extractions;
   registry_.finalize_outside(window_.bounds_m());
-  detector_.clear();
-  window_.for_each_sample(
-      [this](const planes::VoxelSums& sample) { detector_.add_sample(sample); });
+  give_detector_the_window();
   // The lasers' own scan planes are not surfaces (PlaneExclusion).
   std::array<planes::PlaneExclusion, kMaxLasers> exclusions{};
   std::size_t exclusion_count = 0;
@@ -397,6 +396,26 @@ void Mapper::extract(TimestampNs stamp_ns) noexcept {
   counters_.scan_planes_rejected += detector_.stats().planes_excluded;
   registry_.update(planes, detector_.plane_moments());
   update_stamp_ns_ = stamp_ns;
+}
+
+void Mapper::give_detector_the_window() noexcept {
+  // A tile that left took its samples with it: the detector starts over. Otherwise it only
+  // needs the samples that gained points since the last extraction.
+  const std::uint64_t evicted = window_.counters().tiles_evicted;
+  const bool incremental = config_.incremental_extraction && extracted_before_ &&
+                           evicted == tiles_evicted_at_extraction_;
+  if (incremental) {
+    window_.for_each_touched(
+        [this](const planes::VoxelSums& sample) { detector_.set_sample(sample); });
+    ++counters_.incremental_extractions;
+  } else {
+    detector_.clear();
+    window_.for_each_sample(
+        [this](const planes::VoxelSums& sample) { detector_.add_sample(sample); });
+  }
+  window_.forget_touched();
+  extracted_before_ = true;
+  tiles_evicted_at_extraction_ = evicted;
 }
 
 bool Mapper::step() noexcept {

@@ -25,6 +25,33 @@ ShapeOptions shape_options(const PlanesConfig& config) noexcept {
   return options;
 }
 
+// The orientation grid's bytes and searched rows. Its kernels hold only searched rows, so
+// their size depends on the geometry (walls and roofs search a tenth of the sphere): one is
+// built in a scratch arena, sized by the bound for any orientation, and measured. Start-up
+// only (budgets are checked before anything runs).
+struct MeasuredGrid {
+  double bytes = 0.0;
+  double rows = 0.0;
+};
+MeasuredGrid measured_orientation_grid(const PlanesConfig& config) {
+  // The bound: cells over the half sphere plus one per band, each with a surface kernel (a
+  // disc of normal_kernel_deg), a line kernel (a half circle) and neighbour entries.
+  const double pi = std::numbers::pi;
+  const double per_rad = 180.0 / pi / config.angle_bin_deg;
+  const double cells = 2.0 * pi * per_rad * per_rad + 90.0 / config.angle_bin_deg + 2.0;
+  const double kernel = pi * std::pow(config.normal_kernel_deg / config.angle_bin_deg + 1.5, 2.0) +
+                        2.0 * 180.0 / config.angle_bin_deg + 8.0;
+  const double bound =
+      cells *
+      (sizeof(Eigen::Vector3f) + 5 * sizeof(std::uint32_t) + kernel * sizeof(std::uint32_t) +
+       OrientationGrid::kMaxNeighbours * sizeof(OrientationGrid::Neighbour) + 1);
+  Arena scratch(static_cast<std::size_t>(bound) + (std::size_t{1} << 12));
+  OrientationGrid grid;
+  grid.init(scratch, config.angle_bin_deg, config.orientation_mode,
+            config.orientation_tolerance_deg, config.normal_kernel_deg);
+  return {static_cast<double>(scratch.used_bytes()), static_cast<double>(grid.row_count())};
+}
+
 constexpr double kDegToRad = std::numbers::pi / 180.0;
 // The inlier band: this many times the fit's RMS distance, grown in at most this many extra
 // refinement steps.
@@ -44,6 +71,9 @@ void PlaneDetector::init(Arena& arena, const PlanesConfig& config) {
   orientations_.init(arena, config.angle_bin_deg, config.orientation_mode,
                      config.orientation_tolerance_deg, config.normal_kernel_deg);
   voxels_.init(arena, config.sample_size_m, config.max_samples, block_capacity(config));
+  if (config.keep_shapes) {
+    voxels_.keep_shapes(arena);
+  }
   sections_.init(arena, block_capacity(config),
                  whole_ratio(config.section_size_m, config.section_stride_m),
                  config.section_stride_m);
@@ -65,38 +95,24 @@ void PlaneDetector::init(Arena& arena, const PlanesConfig& config) {
 }
 
 std::size_t PlaneDetector::arena_budget_bytes(const PlanesConfig& config) noexcept {
-  // Orientation cells over the half sphere, plus one per band; each has a surface kernel (a
-  // disc of normal_kernel_deg), a line kernel (a half circle) and neighbour entries.
-  const double step = config.angle_bin_deg;
-  const double cells =
-      2.0 * 3.14159265 * (180.0 / 3.14159265 / step) * (180.0 / 3.14159265 / step) + 90.0 / step +
-      2.0;
-  const double kernel =
-      3.14159265 * std::pow(config.normal_kernel_deg / step + 1.5, 2.0) + 2.0 * 180.0 / step + 8.0;
-  const double grid =
-      cells * (sizeof(Eigen::Vector3f) + 3 * sizeof(std::uint32_t) + 2 * sizeof(std::uint32_t) +
-               kernel * sizeof(std::uint32_t) +
-               OrientationGrid::kMaxNeighbours * sizeof(OrientationGrid::Neighbour) + 1);
+  const MeasuredGrid grid = measured_orientation_grid(config);
   const double half_range = 0.5 * std::sqrt(3.0) * config.section_size_m + config.d_bin_m;
   const double d_bins = 2.0 * std::ceil(half_range / config.d_bin_m);
-  const auto voxels =
-      static_cast<double>(VoxelGrid::arena_bytes(config.max_samples, block_capacity(config)));
+  const auto voxels = static_cast<double>(
+      VoxelGrid::arena_bytes(config.max_samples, block_capacity(config)) +
+      (config.keep_shapes ? VoxelGrid::shape_cache_bytes(config.max_samples) : 0));
   const auto sections = static_cast<double>(SectionGrid::arena_bytes(
       block_capacity(config), whole_ratio(config.section_size_m, config.section_stride_m)));
   const double accumulator =
-      cells * d_bins * sizeof(float) +
+      grid.rows * d_bins * sizeof(float) +
       static_cast<double>(config.max_samples_per_section) * 32 * sizeof(std::uint32_t);
-  const auto patches = static_cast<double>(config.max_patches);
-  const auto planes = static_cast<double>(config.max_planes);
-  const double merger = patches * (sizeof(SectionPlane) + 2 * sizeof(std::uint32_t) +
-                                   4 * (sizeof(Eigen::Vector3d) + 2 * sizeof(Eigen::Vector2d))) +
-                        planes * (sizeof(msg::PlanePatch) + 1100.0) + 4096.0;
+  const auto merger = static_cast<double>(PlaneMerger::arena_bytes(config));
   const double section = static_cast<double>(block_capacity(config)) * sizeof(std::uint32_t) +
                          static_cast<double>(config.max_samples_per_section) *
                              (2 * sizeof(std::uint32_t) + sizeof(Eigen::Vector3f)) +
                          static_cast<double>(config.max_planes_per_section) * sizeof(HoughPeak);
   // Alignment padding: a few dozen allocations of at most 64 bytes each.
-  return static_cast<std::size_t>(grid + voxels + sections + accumulator + merger + section) +
+  return static_cast<std::size_t>(grid.bytes + voxels + sections + accumulator + merger + section) +
          (std::size_t{1} << 16);
 }
 
@@ -120,6 +136,7 @@ std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
   sections_.build(voxels_);
   voxels_.estimate_shapes(shape_options(config_));
   stats_.surface_noise_m = voxels_.surface_noise_m();
+  stats_.shapes_reused = voxels_.shapes_reused();
   std::fill_n(block_free_points_.begin(), voxels_.block_count(), 0U);
   for (Voxel& voxel : voxels_.voxels()) {
     voxel.owner = -1;

@@ -57,6 +57,16 @@ void PlaneMerger::init(Arena& arena, const PlanesConfig& config) {
   clear();
 }
 
+std::size_t PlaneMerger::arena_bytes(const PlanesConfig& config) noexcept {
+  constexpr std::size_t kAlignment = 64;  // per allocation, at most
+  const std::size_t patches = config.max_patches;
+  const std::size_t planes = config.max_planes;
+  return patches * (sizeof(SectionPlane) + 2 * sizeof(std::uint32_t)) +
+         planes * (sizeof(Candidate) + sizeof(msg::PlanePatch) + sizeof(PointMoments)) +
+         4 * patches * sizeof(Eigen::Vector3d) + 2 * (4 * patches + 1) * sizeof(Eigen::Vector2d) +
+         msg::kMaxPolygonVertices * sizeof(Eigen::Vector2d) + 10 * kAlignment;
+}
+
 void PlaneMerger::clear() noexcept {
   plane_count_ = 0;
   candidate_count_ = 0;

@@ -96,6 +96,24 @@ void VoxelGrid::init(Arena& arena, double voxel_size_m, std::size_t max_voxels,
   clear();
 }
 
+void VoxelGrid::keep_shapes(Arena& arena) {
+  const std::size_t max_voxels = voxels_.size();
+  serial_of_slot_ = arena.allocate_array<std::uint32_t>(table_.size(), "planes.kept_shapes");
+  dense_serial_ = arena.allocate_array<std::uint32_t>(max_voxels, "planes.kept_shapes");
+  kept_ = arena.allocate_array<KeptShape>(max_voxels, "planes.kept_shapes");
+  block_flags_ = arena.allocate_array<std::uint8_t>(block_keys_.size(), "planes.kept_shapes");
+  keeping_shapes_ = true;
+  clear();
+}
+
+std::size_t VoxelGrid::shape_cache_bytes(std::size_t max_voxels) noexcept {
+  const std::size_t slots = std::bit_ceil(std::max<std::size_t>(2 * max_voxels, 64));
+  constexpr std::size_t kAlignment = 64;  // per allocation, at most
+  return slots * sizeof(std::uint32_t) +
+         max_voxels * (sizeof(std::uint32_t) + sizeof(KeptShape) + sizeof(std::uint8_t)) +
+         4 * kAlignment;
+}
+
 std::size_t VoxelGrid::arena_bytes(std::size_t max_voxels, std::size_t max_blocks) noexcept {
   const std::size_t blocks = max_blocks == 0 ? max_voxels : max_blocks;
   const std::size_t slots = std::bit_ceil(std::max<std::size_t>(2 * max_voxels, 64));
@@ -169,6 +187,10 @@ std::uint32_t VoxelGrid::find_or_create(CellKey key) noexcept {
         return CellIndex::kAbsent;
       }
       voxel = VoxelSums{.key = key};
+      if (keeping_shapes_) {
+        serial_of_slot_[slot] = static_cast<std::uint32_t>(slot_count_);
+        kept_[slot_count_].valid = false;
+      }
       slots_in_use_[slot_count_++] = static_cast<std::uint32_t>(slot);
       return static_cast<std::uint32_t>(slot);
     }
@@ -193,7 +215,17 @@ bool VoxelGrid::mark_in_block(std::int64_t x, std::int64_t y, std::int64_t z) no
     ++block_count_;
   }
   block_masks_[block] |= std::uint64_t{1} << bit_in_block(x, y, z);
+  if (keeping_shapes_) {
+    block_flags_[block] = kChanged;  // a new cell (and a new block is all new)
+  }
   return true;
+}
+
+void VoxelGrid::mark_changed(CellKey block_key) noexcept {
+  const std::uint32_t block = block_index_.find(block_key);
+  if (block != CellIndex::kAbsent) {
+    block_flags_[block] |= kChanged;
+  }
 }
 
 namespace {
@@ -278,10 +310,14 @@ void VoxelGrid::compact() noexcept {
     for (std::uint64_t cells = block_masks_[block]; cells != 0; cells &= cells - 1) {
       const auto bit = static_cast<std::uint32_t>(std::countr_zero(cells));
       // A cell marked in its block always has its slot: blocks are marked on creation.
-      const VoxelSums& sums = table_[find(
-          pack_cell(base.x() + (bit >> 4), base.y() + ((bit >> 2) & 3), base.z() + (bit & 3)))];
+      const std::uint32_t slot =
+          find(pack_cell(base.x() + (bit >> 4), base.y() + ((bit >> 2) & 3), base.z() + (bit & 3)));
+      const VoxelSums& sums = table_[slot];
       if (sums.point_count == 0) {
         continue;  // every point taken back out
+      }
+      if (keeping_shapes_) {
+        dense_serial_[count_] = serial_of_slot_[slot];
       }
       centred_sums_[count_] = about_block_centre(sums, bit, size_m_);
       Voxel& voxel = voxels_[count_++];
@@ -402,6 +438,7 @@ inline void VoxelGrid::accumulate(const LocatedPoint& point, int sign) noexcept 
 }
 
 void VoxelGrid::add_point(const Eigen::Vector3f& point_m) noexcept {
+  BLOCKMAP_CHECK_MSG(!keeping_shapes_, "kept shapes need add_sums or set_sums");
   accumulate(locate(point_m, inverse_size_), 1);
 }
 
@@ -429,13 +466,40 @@ void VoxelGrid::add_sums(const VoxelSums& sums) noexcept {
   }
   counters_.points_added += sums.point_count;
   last_index_ = CellIndex::kAbsent;
+  if (keeping_shapes_) {
+    mark_changed(block_of_cell(cell.x(), cell.y(), cell.z()));
+  }
+}
+
+void VoxelGrid::set_sums(const VoxelSums& sums) noexcept {
+  const Eigen::Matrix<std::int64_t, 3, 1> cell = unpack_cell(sums.key);
+  if (!cell_in_range(cell.x(), cell.y(), cell.z())) {
+    counters_.points_dropped_range += sums.point_count;
+    return;
+  }
+  const std::uint32_t id = find_or_create(sums.key);
+  if (id == CellIndex::kAbsent) {
+    counters_.points_dropped_full += sums.point_count;
+    return;
+  }
+  VoxelSums& voxel = table_[id];
+  // The points it gained (the window only adds until a tile leaves, and then the mapper
+  // starts the grid over).
+  counters_.points_added += sums.point_count - std::min(sums.point_count, voxel.point_count);
+  voxel = sums;
+  last_index_ = CellIndex::kAbsent;
+  if (keeping_shapes_) {
+    mark_changed(block_of_cell(cell.x(), cell.y(), cell.z()));
+  }
 }
 
 void VoxelGrid::remove_point(const Eigen::Vector3f& point_m) noexcept {
+  BLOCKMAP_CHECK_MSG(!keeping_shapes_, "kept shapes need add_sums or set_sums");
   accumulate(locate(point_m, inverse_size_), -1);
 }
 
 void VoxelGrid::add_points(std::span<const Eigen::Vector3f> points_m) noexcept {
+  BLOCKMAP_CHECK_MSG(!keeping_shapes_, "kept shapes need add_sums or set_sums");
   // In batches: a batch's points are located first, and the slot of each change of cell
   // fetched (the table is tens of MiB; a new cell is a cache miss), then they are summed
   // while the fetches arrive.
@@ -564,13 +628,43 @@ void VoxelGrid::estimate_shapes(const ShapeOptions& options) noexcept {
   }
 }
 
+void VoxelGrid::mark_stale_blocks() noexcept {
+  for (std::size_t block = 0; block < block_count_; ++block) {
+    if ((block_flags_[block] & kChanged) == 0) {
+      continue;
+    }
+    const auto b = unpack_cell(block_keys_[block]);
+    for (std::int64_t dx = -1; dx <= 1; ++dx) {
+      for (std::int64_t dy = -1; dy <= 1; ++dy) {
+        for (std::int64_t dz = -1; dz <= 1; ++dz) {
+          const std::uint32_t near =
+              block_index_.find(pack_cell(b.x() + dx, b.y() + dy, b.z() + dz));
+          if (near != CellIndex::kAbsent) {
+            block_flags_[near] |= kStale;
+          }
+        }
+      }
+    }
+  }
+}
+
 void VoxelGrid::estimate_fine_shapes(const ShapeLimits& limits, double& thickness_sum_m,
                                      std::uint64_t& planar_count) noexcept {
+  shapes_reused_ = 0;
+  if (keeping_shapes_) {
+    mark_stale_blocks();
+  }
+  const auto estimated = [this](std::size_t i) {
+    return !keeping_shapes_ || (block_flags_[block_order_[i].block] & kStale) != 0;
+  };
   // Pipelined: the neighbourhood of the block kAhead places on is looked up (and its sums
-  // fetched) while this block's samples are summed.
+  // fetched) while this block's samples are summed. A block whose shapes are kept needs none.
   constexpr std::size_t kAhead = 2;
   std::array<BlockNeighbourhood, kAhead + 1> ring;
   const auto look_up = [&](std::size_t i) {
+    if (!estimated(i)) {
+      return;
+    }
     const std::uint32_t block = block_order_[i].block;
     const auto b = unpack_cell(block_keys_[block]);
     load_neighbourhood(b.x(), b.y(), b.z(), live_masks_[block], ring[i % ring.size()]);
@@ -584,16 +678,32 @@ void VoxelGrid::estimate_fine_shapes(const ShapeLimits& limits, double& thicknes
     }
     const BlockRange range = block_range(block_order_[i].block);
     const BlockNeighbourhood& around = ring[i % ring.size()];
+    const bool estimate = estimated(i);
     float thickness_sum = 0.0f;  // per block in float, over the cloud in double
     for (std::uint32_t id = range.first; id < range.first + range.count; ++id) {
       Voxel& voxel = voxels_[id];
-      const float thickness_m = estimate_shape(voxel, around, limits);
+      float thickness_m = 0.0f;
+      KeptShape* kept = keeping_shapes_ ? &kept_[dense_serial_[id]] : nullptr;
+      if (estimate || !kept->valid) {
+        thickness_m = estimate_shape(voxel, around, limits);
+        if (kept != nullptr) {
+          *kept = KeptShape{voxel.axis, thickness_m, voxel.shape, true};
+        }
+      } else {
+        voxel.shape = kept->shape;
+        voxel.axis = kept->axis;
+        thickness_m = kept->thickness_m;
+        ++shapes_reused_;
+      }
       if (voxel.shape == LocalShape::kPlanar) {
         thickness_sum += thickness_m;
         ++planar_count;
       }
     }
     thickness_sum_m += static_cast<double>(thickness_sum);
+  }
+  if (keeping_shapes_) {
+    std::fill_n(block_flags_.begin(), block_count_, std::uint8_t{0});
   }
 }
 

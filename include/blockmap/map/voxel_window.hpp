@@ -96,13 +96,26 @@ class VoxelWindow {
     }
   }
 
+  // The samples that gained points since forget_touched() (each once), in the order they
+  // first did; a tile that left since may have taken some (those are skipped).
+  template <typename Visit>  // void(const planes::VoxelSums&)
+  void for_each_touched(Visit&& visit) const {
+    for (std::size_t i = 0; i < touched_count_; ++i) {
+      const planes::VoxelSums& sample = samples_[touched_[i]];
+      if (sample.key != planes::kNoCell) {
+        visit(sample);
+      }
+    }
+  }
+  void forget_touched() noexcept;
+
   [[nodiscard]] std::size_t size() const noexcept { return sample_count_; }
   [[nodiscard]] std::size_t capacity() const noexcept { return samples_.size(); }
   [[nodiscard]] const VoxelWindowConfig& config() const noexcept { return config_; }
   [[nodiscard]] const VoxelWindowCounters& counters() const noexcept { return counters_; }
   [[nodiscard]] std::size_t memory_bytes() const noexcept {
     return slots_.size_bytes() + samples_.size_bytes() + next_.size_bytes() + table_.size_bytes() +
-           chunk_.size_bytes();
+           chunk_.size_bytes() + touched_.size_bytes() + touched_flag_.size_bytes();
   }
 
  private:
@@ -144,6 +157,10 @@ class VoxelWindow {
   std::span<TableSlot> table_;  // linear probing, at most half full; deletion shifts back
   std::uint32_t table_shift_ = 64;
   std::span<planes::VoxelSums> chunk_;  // an evicted tile's samples, gathered for the sink
+  // Samples that gained points since forget_touched(): their pool indexes, and a flag each.
+  std::span<std::uint32_t> touched_;
+  std::size_t touched_count_ = 0;
+  std::span<std::uint8_t> touched_flag_;
   VoxelWindowCounters counters_;
 };
 

@@ -79,6 +79,11 @@ struct MapperConfig {
   map::PlaneRegistryConfig registry;
 
   double extract_every_s = 1.0;  // of scan time, between plane extractions
+  // Between two extractions with no tile leaving the window, the detector keeps its samples
+  // and shapes and takes only the samples that gained points (a few per cent of the window a
+  // second); shapes are estimated again only around them. The planes are the same either way
+  // (MapperSim.IncrementalExtractionGivesTheSameStream); false detects every window afresh.
+  bool incremental_extraction = true;
   // A detected plane within this angle of a laser's scan plane that passes this close to
   // where the laser has been, while moving within that plane, is that scan plane
   // (planes::PlaneExclusion): not reported. The positions are kept every
@@ -109,6 +114,7 @@ struct MapperCounters {
   std::uint64_t messages_late = 0;   // older than what was already processed: dropped
   std::uint64_t reorder_forced = 0;  // the reorder buffer was full: its oldest went early
   std::uint64_t extractions = 0;
+  std::uint64_t incremental_extractions = 0;  // of those, with the detector's kept samples
   std::size_t peak_blocks = 0;             // the detector's occupied blocks, for sizing max_blocks
   std::uint64_t scan_planes_rejected = 0;  // detected planes that were a laser's scan plane
   std::uint64_t points = 0;
@@ -198,6 +204,8 @@ class Mapper {
   [[nodiscard]] std::ptrdiff_t next_ready_scan() const noexcept;
   void project(const QueuedScan& queued) noexcept;
   void remove_scan(std::size_t index) noexcept;
+  // The window's samples into the detector: all of them, or those that changed.
+  void give_detector_the_window() noexcept;
   void extract(TimestampNs stamp_ns) noexcept;
 
   MapperConfig config_;
@@ -241,6 +249,8 @@ class Mapper {
   double held_z_m_ = 0.0;
 
   bool extraction_scheduled_ = false;
+  bool extracted_before_ = false;
+  std::uint64_t tiles_evicted_at_extraction_ = 0;
   TimestampNs next_extraction_ns_ = 0;
   TimestampNs last_scan_ns_ = 0;
   bool ending_ = false;

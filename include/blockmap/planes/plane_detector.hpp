@@ -40,6 +40,7 @@ struct DetectionStats {
   std::uint64_t planes = 0;
   std::uint64_t planes_excluded = 0;  // known not to be surfaces (set_exclusions)
   double surface_noise_m = 0.0;       // VoxelGrid::surface_noise_m(): how blurred the cloud is
+  std::uint64_t shapes_reused = 0;    // samples whose fine shape was kept (keep_shapes)
 };
 
 class PlaneDetector {
@@ -56,6 +57,9 @@ class PlaneDetector {
   void add_points(std::span<const Eigen::Vector3f> points_m) noexcept;
   // A voxel's sums gathered elsewhere (the mapper's window), in the voxel grid's layout.
   void add_sample(const VoxelSums& sample) noexcept { voxels_.add_sums(sample); }
+  // A sample as it is now (keep_shapes: the next detect() estimates shapes again only around
+  // the samples set or added since the last one).
+  void set_sample(const VoxelSums& sample) noexcept { voxels_.set_sums(sample); }
 
   // Planes known not to be surfaces (a laser's scan plane), dropped by the next detect()s.
   void set_exclusions(std::span<const PlaneExclusion> exclusions) noexcept {

@@ -79,6 +79,8 @@ class PlaneMerger {
   [[nodiscard]] std::size_t section_plane_count() const noexcept { return plane_count_; }
   [[nodiscard]] const Counters& counters() const noexcept { return counters_; }
   [[nodiscard]] std::size_t memory_bytes() const noexcept;
+  // Bytes init() takes from the arena for `config` (alignment padding included).
+  [[nodiscard]] static std::size_t arena_bytes(const PlanesConfig& config) noexcept;
 
  private:
   struct Candidate {

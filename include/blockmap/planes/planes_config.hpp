@@ -58,6 +58,10 @@ struct PlanesConfig {
   // scattered while a cloud blurred by pose errors gets its walls back.
   double max_noisy_slab_ratio = 0.5;
   double noisy_slab_per_noise = 4.0;
+  // Keep the samples' fine shapes from one detect() to the next until clear() (the mapper's
+  // window, which changes a few per cent a second; VoxelGrid::keep_shapes). The batch tool
+  // detects once and has no use for it.
+  bool keep_shapes = false;
 
   // A cell of the accumulator is a plane when its votes (points, summed over the cell and its
   // two neighbours in d) reach this threshold and no neighbouring cell has more.

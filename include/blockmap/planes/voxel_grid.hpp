@@ -192,6 +192,19 @@ class VoxelGrid {
   void remove_point(const Eigen::Vector3f& point_m) noexcept;
   // Adds a voxel's sums gathered elsewhere (same voxel size, sums about the voxel's centre).
   void add_sums(const VoxelSums& sums) noexcept;
+  // Sets a voxel's sums to what they are now elsewhere (the mapper's window), creating it.
+  void set_sums(const VoxelSums& sums) noexcept;
+
+  // Shapes kept from one estimate_shapes() to the next, until clear(): the next estimates
+  // again only the blocks within one block of a block whose samples changed (new, or through
+  // add_sums and set_sums), and takes the others' fine shapes as they were. They are the
+  // same shapes: a shape reads its 3 x 3 x 3 neighbourhood's sums, and those did not change.
+  // (add_point and remove_point do not say which block they change: not with kept shapes.)
+  // Call once after init(); takes shape_cache_bytes() from the arena.
+  void keep_shapes(Arena& arena);
+  [[nodiscard]] static std::size_t shape_cache_bytes(std::size_t max_voxels) noexcept;
+  // Samples whose fine shape the last estimate_shapes() took from the kept ones.
+  [[nodiscard]] std::uint64_t shapes_reused() const noexcept { return shapes_reused_; }
   // Adds many points, fetching the slots of points a few ahead while it works on this one.
   void add_points(std::span<const Eigen::Vector3f> points_m) noexcept;
 
@@ -241,7 +254,8 @@ class VoxelGrid {
     return table_.size_bytes() + voxels_.size_bytes() + block_index_.memory_bytes() +
            block_keys_.size_bytes() + block_masks_.size_bytes() + live_masks_.size_bytes() +
            block_first_.size_bytes() + block_order_.size_bytes() + centred_sums_.size_bytes() +
-           block_sums_.size_bytes() + block_summed_.size_bytes();
+           block_sums_.size_bytes() + block_summed_.size_bytes() + serial_of_slot_.size_bytes() +
+           dense_serial_.size_bytes() + kept_.size_bytes() + block_flags_.size_bytes();
   }
   // Bytes init() takes from the arena for `max_voxels`.
   [[nodiscard]] static std::size_t arena_bytes(std::size_t max_voxels,
@@ -292,6 +306,9 @@ class VoxelGrid {
     float noisy_slab_ratio_sq = 0.0f;      // the coarse look's looser ratio for thin slabs
     float noisy_slab_thickness_m2 = 0.0f;  // ... at most this thick (variance)
   };
+  // With kept shapes: the blocks within one block of a changed block are marked stale.
+  void mark_stale_blocks() noexcept;
+  void mark_changed(CellKey block_key) noexcept;
   // The fine shape of every sample; adds up the planar samples' thicknesses and count.
   void estimate_fine_shapes(const ShapeLimits& limits, double& thickness_sum_m,
                             std::uint64_t& planar_count) noexcept;
@@ -330,6 +347,23 @@ class VoxelGrid {
   std::span<CentredSums> centred_sums_;   // per sample, about its block's centre (compact())
   std::span<CentredSums> block_sums_;     // per block, when a coarse look needs it
   std::span<std::uint8_t> block_summed_;  // 1: block_sums_ holds the block's sums
+  // Kept shapes (keep_shapes()): each voxel's serial (its order of creation since clear(),
+  // which compact() does not change), by table slot and by dense id; the fine shape of each
+  // serial; per block, kChanged and kStale.
+  struct KeptShape {
+    Eigen::Vector3f axis = Eigen::Vector3f::UnitZ();
+    float thickness_m = 0.0f;
+    LocalShape shape = LocalShape::kTooFewPoints;
+    bool valid = false;
+  };
+  static constexpr std::uint8_t kChanged = 1;
+  static constexpr std::uint8_t kStale = 2;
+  bool keeping_shapes_ = false;
+  std::span<std::uint32_t> serial_of_slot_;
+  std::span<std::uint32_t> dense_serial_;
+  std::span<KeptShape> kept_;
+  std::span<std::uint8_t> block_flags_;
+  std::uint64_t shapes_reused_ = 0;
   std::size_t block_count_ = 0;
   std::uint32_t shift_ = 64;
   std::size_t mask_ = 0;
