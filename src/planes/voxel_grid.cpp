@@ -4,6 +4,7 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <iterator>
 #include <numbers>
 
 #include <Eigen/Geometry>
@@ -483,6 +484,13 @@ void VoxelGrid::set_sums(const VoxelSums& sums) noexcept {
     return;
   }
   VoxelSums& voxel = table_[id];
+  const bool same =
+      voxel.point_count == sums.point_count &&
+      std::equal(std::begin(sums.sum_m), std::end(sums.sum_m), voxel.sum_m) &&
+      std::equal(std::begin(sums.sum_outer_m2), std::end(sums.sum_outer_m2), voxel.sum_outer_m2);
+  if (same) {
+    return;  // nothing changed: its block's shapes stand
+  }
   // The points it gained (the window only adds until a tile leaves, and then the mapper
   // starts the grid over).
   counters_.points_added += sums.point_count - std::min(sums.point_count, voxel.point_count);

@@ -8,6 +8,7 @@
 #include <limits>
 #include <numbers>
 #include <random>
+#include <span>
 #include <vector>
 
 #include "blockmap/core/arena.hpp"
@@ -527,6 +528,70 @@ TEST(VoxelGrid, ABlurredWallBandIsASurfaceOnlyInACloudBlurredAsMuch) {
   EXPECT_NEAR(crisp.surface_noise_m, 0.003, 0.001);
   ASSERT_GT(crisp.wall_samples, 1000u);
   EXPECT_LT(crisp.wall_planar, crisp.wall_samples / 10);
+}
+
+// Kept shapes: after some samples change (set_sums) and some are new (add_sums), the shapes
+// that estimate_shapes() keeps and the ones it estimates again are exactly those of a grid
+// built afresh from the same sums.
+TEST(VoxelGrid, KeptShapesAreTheShapesOfAGridBuiltAfresh) {
+  constexpr std::size_t kSamples = std::size_t{1} << 16;
+  const auto sums_of = [](std::span<const Eigen::Vector3f> points) {
+    Arena arena(VoxelGrid::arena_bytes(kSamples));
+    VoxelGrid grid;
+    grid.init(arena, 0.2, kSamples);
+    grid.add_points(points);
+    grid.compact();
+    std::vector<VoxelSums> sums(grid.voxels().begin(), grid.voxels().end());
+    return sums;
+  };
+  // Before: the floor and wall band. After: more points on part of the wall (changed
+  // samples) and a new patch of floor far from it (new samples, new blocks).
+  std::vector<Eigen::Vector3f> points = floor_and_blurred_wall_band(0.03f, 11);
+  const std::vector<VoxelSums> before = sums_of(points);
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  std::normal_distribution<float> noise(0.0f, 0.1f);
+  for (int i = 0; i < 3000; ++i) {
+    points.emplace_back(noise(rng), 3.0f * unit(rng), 0.3f + unit(rng));
+    points.emplace_back(50.0f + 5.0f * unit(rng), 50.0f + 5.0f * unit(rng), 0.01f * noise(rng));
+  }
+  const std::vector<VoxelSums> after = sums_of(points);
+
+  Arena arena(VoxelGrid::arena_bytes(kSamples) + VoxelGrid::shape_cache_bytes(kSamples));
+  VoxelGrid kept;
+  kept.init(arena, 0.2, kSamples);
+  kept.keep_shapes(arena);
+  for (const VoxelSums& sums : before) {
+    kept.add_sums(sums);
+  }
+  kept.compact();
+  kept.estimate_shapes(ShapeOptions{});
+  for (const VoxelSums& sums : after) {
+    kept.set_sums(sums);
+  }
+  kept.compact();
+  kept.estimate_shapes(ShapeOptions{});
+
+  Arena fresh_arena(VoxelGrid::arena_bytes(kSamples));
+  VoxelGrid fresh;
+  fresh.init(fresh_arena, 0.2, kSamples);
+  for (const VoxelSums& sums : after) {
+    fresh.add_sums(sums);
+  }
+  fresh.compact();
+  fresh.estimate_shapes(ShapeOptions{});
+
+  ASSERT_EQ(kept.size(), fresh.size());
+  EXPECT_GT(kept.shapes_reused(), kept.size() / 2) << "most blocks did not change";
+  EXPECT_LT(kept.shapes_reused(), kept.size());
+  EXPECT_EQ(kept.surface_noise_m(), fresh.surface_noise_m());
+  for (std::size_t i = 0; i < kept.size(); ++i) {
+    const Voxel& a = kept.voxels()[i];
+    const Voxel& b = fresh.voxels()[i];
+    ASSERT_EQ(a.key, b.key);
+    EXPECT_EQ(a.shape, b.shape) << "sample " << i;
+    EXPECT_EQ(a.axis, b.axis) << "sample " << i;
+  }
 }
 
 TEST(VoxelGrid, CountingVoxelsBeforeInitGivesTheGridsOwnCount) {

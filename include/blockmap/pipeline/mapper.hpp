@@ -82,7 +82,8 @@ struct MapperConfig {
   // Between two extractions with no tile leaving the window, the detector keeps its samples
   // and shapes and takes only the samples that gained points (a few per cent of the window a
   // second); shapes are estimated again only around them. The planes are the same either way
-  // (MapperSim.IncrementalExtractionGivesTheSameStream); false detects every window afresh.
+  // (MapperSim.TheSameRunGivesTheSameStreamWithOrWithoutKeptShapes); false detects every
+  // window afresh.
   bool incremental_extraction = true;
   // A detected plane within this angle of a laser's scan plane that passes this close to
   // where the laser has been, while moving within that plane, is that scan plane
