@@ -443,18 +443,33 @@ void VoxelGrid::add_point(const Eigen::Vector3f& point_m) noexcept {
   accumulate(locate(point_m, inverse_size_), 1);
 }
 
-void VoxelGrid::add_sums(const VoxelSums& sums) noexcept {
-  if (sums.point_count == 0) {
-    return;
-  }
+std::uint32_t VoxelGrid::slot_for(const VoxelSums& sums) noexcept {
   const Eigen::Matrix<std::int64_t, 3, 1> cell = unpack_cell(sums.key);
   if (!cell_in_range(cell.x(), cell.y(), cell.z())) {
     counters_.points_dropped_range += sums.point_count;
-    return;
+    return CellIndex::kAbsent;
   }
   const std::uint32_t id = find_or_create(sums.key);
   if (id == CellIndex::kAbsent) {
     counters_.points_dropped_full += sums.point_count;
+  }
+  last_index_ = CellIndex::kAbsent;
+  return id;
+}
+
+void VoxelGrid::sums_changed(CellKey key) noexcept {
+  if (keeping_shapes_) {
+    const auto cell = unpack_cell(key);
+    mark_changed(block_of_cell(cell.x(), cell.y(), cell.z()));
+  }
+}
+
+void VoxelGrid::add_sums(const VoxelSums& sums) noexcept {
+  if (sums.point_count == 0) {
+    return;
+  }
+  const std::uint32_t id = slot_for(sums);
+  if (id == CellIndex::kAbsent) {
     return;
   }
   VoxelSums& voxel = table_[id];
@@ -466,21 +481,12 @@ void VoxelGrid::add_sums(const VoxelSums& sums) noexcept {
     voxel.sum_outer_m2[i] += sums.sum_outer_m2[i];
   }
   counters_.points_added += sums.point_count;
-  last_index_ = CellIndex::kAbsent;
-  if (keeping_shapes_) {
-    mark_changed(block_of_cell(cell.x(), cell.y(), cell.z()));
-  }
+  sums_changed(sums.key);
 }
 
 void VoxelGrid::set_sums(const VoxelSums& sums) noexcept {
-  const Eigen::Matrix<std::int64_t, 3, 1> cell = unpack_cell(sums.key);
-  if (!cell_in_range(cell.x(), cell.y(), cell.z())) {
-    counters_.points_dropped_range += sums.point_count;
-    return;
-  }
-  const std::uint32_t id = find_or_create(sums.key);
+  const std::uint32_t id = slot_for(sums);
   if (id == CellIndex::kAbsent) {
-    counters_.points_dropped_full += sums.point_count;
     return;
   }
   VoxelSums& voxel = table_[id];
@@ -495,10 +501,7 @@ void VoxelGrid::set_sums(const VoxelSums& sums) noexcept {
   // starts the grid over).
   counters_.points_added += sums.point_count - std::min(sums.point_count, voxel.point_count);
   voxel = sums;
-  last_index_ = CellIndex::kAbsent;
-  if (keeping_shapes_) {
-    mark_changed(block_of_cell(cell.x(), cell.y(), cell.z()));
-  }
+  sums_changed(sums.key);
 }
 
 void VoxelGrid::remove_point(const Eigen::Vector3f& point_m) noexcept {

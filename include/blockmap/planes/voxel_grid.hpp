@@ -309,6 +309,11 @@ class VoxelGrid {
   // With kept shapes: the blocks within one block of a changed block are marked stale.
   void mark_stale_blocks() noexcept;
   void mark_changed(CellKey block_key) noexcept;
+  // The slot for sums.key, created when new; kAbsent, its points counted as dropped, when
+  // the key is out of range or the grid full.
+  [[nodiscard]] std::uint32_t slot_for(const VoxelSums& sums) noexcept;
+  // With kept shapes: the block of this cell changed.
+  void sums_changed(CellKey key) noexcept;
   // The fine shape of every sample; adds up the planar samples' thicknesses and count.
   void estimate_fine_shapes(const ShapeLimits& limits, double& thickness_sum_m,
                             std::uint64_t& planar_count) noexcept;
