@@ -695,12 +695,15 @@ void VoxelGrid::estimate_fine_shapes(const ShapeLimits& limits, double& thicknes
       Voxel& voxel = voxels_[id];
       float thickness_m = 0.0f;
       KeptShape* kept = keeping_shapes_ ? &kept_[dense_serial_[id]] : nullptr;
-      if (estimate || !kept->valid) {
+      if (estimate) {
         thickness_m = estimate_shape(voxel, around, limits);
         if (kept != nullptr) {
           *kept = KeptShape{voxel.axis, thickness_m, voxel.shape, true};
         }
       } else {
+        // A new sample marks its block changed, so a kept block's shapes were all estimated
+        // before (and this block's neighbourhood was not looked up).
+        BLOCKMAP_CHECK_MSG(kept->valid, "a kept block holds a sample never estimated");
         voxel.shape = kept->shape;
         voxel.axis = kept->axis;
         thickness_m = kept->thickness_m;
