@@ -28,6 +28,9 @@ Command add_decode_command(CLI::App& app);
 // `blockmap planes CLOUD`: the plane list of a point cloud file.
 Command add_planes_command(CLI::App& app);
 
+// `blockmap buildings INPUT`: the buildings of a plane list or a point cloud file.
+Command add_buildings_command(CLI::App& app);
+
 // `blockmap simulate --world NAME --out DIR`: a recorded run of the simulated robot.
 Command add_simulate_command(CLI::App& app);
 // `blockmap run [--config FILE] [--out DIR]`: the onboard mapper (the simulated city block).

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <ostream>
 
+#include "blockmap/hal/config/buildings_config.hpp"
 #include "blockmap/hal/config/planes_config.hpp"
 #include "blockmap/hal/sim/simulated_robot.hpp"
 
@@ -19,6 +20,7 @@ pipeline::MapperConfig mapper_config_for(const hal::sim::RobotSpec& robot,
   pipeline::MapperConfig config = hal::sim::mapper_config_for(robot);
   if (!options.config.empty()) {
     config.planes = hal::config::load_planes_config(options.config, config.planes);
+    config.buildings = hal::config::load_buildings_config(options.config, config.buildings);
   }
   config.window.voxel_size_m = config.planes.sample_size_m;
   return config;
@@ -70,18 +72,20 @@ void MappingSession::pump() {
   while (mapper_.step()) {
     const pipeline::PlaneUpdate update = mapper_.update();
     outputs_.write_update(update.stamp_ns, update.changes);
+    outputs_.write_buildings(update.stamp_ns, mapper_.buildings());
   }
   outputs_.write_poses(
       std::span<const localize::Pose3>(poses_.data(), mapper_.drain_final_poses(poses_)));
 }
 
-std::string MappingSession::finish() {
+std::string MappingSession::finish(const std::optional<hal::GeodeticPoint>& origin) {
   mapper_.end_of_input();
   pump();
   outputs_.write_poses(
       std::span<const localize::Pose3>(poses_.data(), mapper_.smoothed_poses(poses_)));
   wall_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
-  return outputs_.finish(mapper_.final_planes(), mapper_.counters().points, wall_s_);
+  return outputs_.finish(mapper_.final_planes(), mapper_.buildings(), origin,
+                         mapper_.counters().points, wall_s_);
 }
 
 void MappingSession::report(std::ostream& err, double data_s) const {

@@ -7,9 +7,11 @@
 #include <cstdint>
 #include <iosfwd>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "blockmap/core/arena.hpp"
+#include "blockmap/hal/geodesy.hpp"
 #include "blockmap/hal/sim/robot.hpp"
 #include "blockmap/pipeline/mapper.hpp"
 #include "outputs/map_outputs.hpp"
@@ -43,8 +45,9 @@ class MappingSession {
   // Steps the pipeline over what it was given and writes what it produced.
   void pump();
   // No more input: the rest is processed, the planes finalized and the outputs closed. The
-  // plane list's "seconds" is the wall time from start() to here.
-  [[nodiscard]] std::string finish();
+  // plane list's "seconds" is the wall time from start() to here. With the local frame's
+  // place on Earth, the footprints are written in WGS-84 too.
+  [[nodiscard]] std::string finish(const std::optional<hal::GeodeticPoint>& origin);
   // One line of counters for stderr; data_s: the span of the data mapped.
   void report(std::ostream& err, double data_s) const;
 

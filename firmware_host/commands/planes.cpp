@@ -19,6 +19,7 @@
 #include "blockmap/hal/config/planes_config.hpp"
 #include "blockmap/planes/plane_detector.hpp"
 #include "cli.hpp"
+#include "commands/cloud_planes.hpp"
 #include "commands/commands.hpp"
 #include "outputs/plane_json.hpp"
 #include "outputs/plane_picture.hpp"
@@ -45,8 +46,17 @@ bool write_picture(const PlanesOptions& options, const hal::cloud::PointCloud& c
     view.azimuth_deg = -90.0;
     view.elevation_deg = 90.0;
   }
+  // The points are stored relative to the cloud's origin: the planes join them there.
+  std::vector<msg::PlanePatch> relative(planes.begin(), planes.end());
+  for (msg::PlanePatch& plane : relative) {
+    plane.d_m -= plane.normal.dot(cloud.origin_m);
+    plane.centroid_m -= cloud.origin_m;
+    for (std::size_t i = 0; i < plane.polygon_size; ++i) {
+      plane.polygon_m[i] -= cloud.origin_m;
+    }
+  }
   std::ofstream file(options.svg);
-  write_plane_picture(file, cloud.points_m, planes, view);
+  write_plane_picture(file, cloud.points_m, relative, view);
   if (!file) {
     err << "blockmap: " << options.svg << ": cannot write\n";
     return false;
@@ -54,12 +64,10 @@ bool write_picture(const PlanesOptions& options, const hal::cloud::PointCloud& c
   return true;
 }
 
-int detect_planes(const PlanesOptions& options, std::ostream& out, std::ostream& err) {
-  planes::PlanesConfig config;
-  if (!options.config.empty()) {
-    config = hal::config::load_planes_config(options.config);
-  }
-  const hal::cloud::PointCloud cloud = hal::cloud::read_point_cloud(options.cloud);
+}  // namespace
+
+CloudPlanes detect_cloud_planes(const hal::cloud::PointCloud& cloud, planes::PlanesConfig config,
+                                const std::string& name, std::ostream& err) {
   // Capacities no larger than this cloud needs: its samples are counted before the arena is
   // made (a city scan has about one sample per ten points).
   std::size_t samples = 0;
@@ -77,26 +85,27 @@ int detect_planes(const PlanesOptions& options, std::ostream& out, std::ostream&
   arena.seal();
   const auto start = std::chrono::steady_clock::now();
   detector.add_points(cloud.points_m);
-  const std::span<const msg::PlanePatch> planes = detector.detect();
-  const double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-
-  nlohmann::json list = nlohmann::json::array();
-  for (const msg::PlanePatch& plane : planes) {
-    list.push_back(plane_json(plane, cloud.origin_m));
+  const std::span<const msg::PlanePatch> detected = detector.detect();
+  CloudPlanes result;
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  // Back into the file's frame (the detector worked relative to the cloud's origin).
+  for (msg::PlanePatch plane : detected) {
+    plane.d_m += plane.normal.dot(cloud.origin_m);
+    plane.centroid_m += cloud.origin_m;
+    for (std::size_t i = 0; i < plane.polygon_size; ++i) {
+      plane.polygon_m[i] += cloud.origin_m;
+    }
+    result.planes.push_back(plane);
   }
-  const nlohmann::json document = {
-      {"planes", list}, {"points", cloud.points_m.size()}, {"seconds", rounded_to(seconds, 1e-6)}};
   const planes::DetectionStats& stats = detector.stats();
-  err << "planes: " << options.cloud << " (" << cloud.format << "): " << cloud.points_m.size()
-      << " points";
+  err << "planes: " << name << " (" << cloud.format << "): " << cloud.points_m.size() << " points";
   if (cloud.skipped_nonfinite + cloud.skipped_no_return > 0) {
     err << " (" << cloud.skipped_nonfinite << " non-finite and " << cloud.skipped_no_return
         << " no-return skipped)";
   }
   err << ", " << stats.samples << " samples, " << stats.sections << " sections, "
-      << stats.section_planes << " section planes -> " << planes.size() << " planes in "
-      << seconds * 1e3 << " ms; surfaces " << std::lround(stats.surface_noise_m * 1e3)
+      << stats.section_planes << " section planes -> " << detected.size() << " planes in "
+      << result.seconds * 1e3 << " ms; surfaces " << std::lround(stats.surface_noise_m * 1e3)
       << " mm thick (RMS); " << (arena.used_bytes() >> 20) << " MiB\n";
   if (stats.overflows > 0) {
     err << "planes: warning: " << stats.overflows
@@ -107,6 +116,26 @@ int detect_planes(const PlanesOptions& options, std::ostream& out, std::ostream&
     err << "planes: warning: " << stats.points_dropped
         << " points found no sample (raise max_samples)\n";
   }
+  return result;
+}
+
+namespace {
+
+int detect_planes(const PlanesOptions& options, std::ostream& out, std::ostream& err) {
+  planes::PlanesConfig config;
+  if (!options.config.empty()) {
+    config = hal::config::load_planes_config(options.config);
+  }
+  const hal::cloud::PointCloud cloud = hal::cloud::read_point_cloud(options.cloud);
+  const CloudPlanes detected = detect_cloud_planes(cloud, config, options.cloud, err);
+  const std::vector<msg::PlanePatch>& planes = detected.planes;
+  nlohmann::json list = nlohmann::json::array();
+  for (const msg::PlanePatch& plane : planes) {
+    list.push_back(plane_json(plane));
+  }
+  const nlohmann::json document = {{"planes", list},
+                                   {"points", cloud.points_m.size()},
+                                   {"seconds", rounded_to(detected.seconds, 1e-6)}};
   if (!write_picture(options, cloud, planes, err)) {
     return kExitFailure;
   }

@@ -281,7 +281,11 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
   while (merge.feed_next(session->mapper())) {
     session->pump();
   }
-  if (const std::string problem = session->finish(); !problem.empty()) {
+  std::optional<hal::GeodeticPoint> origin;
+  if (fixes->frame()) {
+    origin = fixes->frame()->origin();
+  }
+  if (const std::string problem = session->finish(origin); !problem.empty()) {
     err << "blockmap: replay: " << problem << '\n';
     return kExitFailure;
   }
@@ -302,11 +306,11 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
         << run->bus().first_rejected_line() << ")";
   }
   if (fixes->frame()) {
-    char origin[96];
-    std::snprintf(origin, sizeof origin, "; origin %.7f,%.7f,%.2f",
+    char origin_text[96];
+    std::snprintf(origin_text, sizeof origin_text, "; origin %.7f,%.7f,%.2f",
                   fixes->frame()->origin().latitude_deg, fixes->frame()->origin().longitude_deg,
                   fixes->frame()->origin().height_m);
-    err << origin;
+    err << origin_text;
   }
   err << '\n';
   if (map_planes) {

@@ -92,7 +92,8 @@ int run(const RunOptions& options, std::ostream& err) {
     simulated->feed(session->mapper(), true_poses);
     session->pump();
   }
-  if (const std::string problem = session->finish(); !problem.empty()) {
+  if (const std::string problem = session->finish(simulated->simulation().world().site.origin);
+      !problem.empty()) {
     err << "blockmap: run: " << problem << '\n';
     return kExitFailure;
   }
@@ -111,7 +112,8 @@ Command add_run_command(CLI::App& app) {
   CLI::App* command = app.add_subcommand(
       "run",
       "The onboard mapper; with no robot attached, on the built-in simulated city block "
-      "(usc_block): writes planes.jsonl, planes.bin, trajectory.csv, planes.json, map.wrl");
+      "(usc_block): writes planes.jsonl, planes.bin, buildings.jsonl, trajectory.csv, planes.json, "
+      "buildings.json, map.wrl, footprints.geojson");
   auto options = std::make_shared<RunOptions>();
   options->mapping.out = "out/run";
   command->add_option("--config", options->mapping.config,

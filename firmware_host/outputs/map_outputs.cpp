@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "blockmap/hal/protocol/plane_stream.hpp"
+#include "outputs/building_outputs.hpp"
 #include "outputs/plane_json.hpp"
 #include "outputs/vrml.hpp"
 
@@ -33,6 +34,7 @@ std::string MapOutputs::open(const fs::path& dir, std::size_t max_changes,
     return static_cast<bool>(file);
   };
   if (!open_file(jsonl_, "planes.jsonl", std::ios::out) ||
+      !open_file(buildings_jsonl_, "buildings.jsonl", std::ios::out) ||
       !open_file(binary_, "planes.bin", std::ios::out | std::ios::binary) ||
       !open_file(trajectory_, "trajectory.csv", std::ios::out)) {
     return "cannot write into " + dir.string();
@@ -80,6 +82,23 @@ void MapOutputs::write_update(TimestampNs stamp_ns, std::span<const msg::PlaneCh
   }
 }
 
+void MapOutputs::write_buildings(TimestampNs stamp_ns,
+                                 std::span<const buildings::Building> buildings) {
+  if (!files_) {
+    return;
+  }
+  std::string list = buildings_json(buildings).dump();
+  if (list == last_buildings_) {
+    return;
+  }
+  ++building_updates_;
+  // {"t_s": ..., "buildings": [...]}: the list's own object with the time put in front.
+  buildings_jsonl_ << "{\"t_s\":"
+                   << nlohmann::json(rounded_to(seconds_from_ns(stamp_ns), 1e-6)).dump() << ','
+                   << list.substr(1) << '\n';
+  last_buildings_ = std::move(list);
+}
+
 void MapOutputs::write_poses(std::span<const localize::Pose3> poses) {
   for (const localize::Pose3& p : poses) {
     char line[160];
@@ -94,8 +113,10 @@ void MapOutputs::write_poses(std::span<const localize::Pose3> poses) {
   }
 }
 
-std::string MapOutputs::finish(std::span<const msg::PlanePatch> planes, std::uint64_t points,
-                               double seconds) {
+std::string MapOutputs::finish(std::span<const msg::PlanePatch> planes,
+                               std::span<const buildings::Building> buildings,
+                               const std::optional<hal::GeodeticPoint>& origin,
+                               std::uint64_t points, double seconds) {
   if (!files_) {
     trajectory_out_->flush();
     return *trajectory_out_ ? std::string() : std::string("writing the trajectory failed");
@@ -112,12 +133,22 @@ std::string MapOutputs::finish(std::span<const msg::PlanePatch> planes, std::uin
       {"planes", list}, {"points", points}, {"seconds", rounded_to(seconds, 1e-4)}};
   std::ofstream planes_file(dir_ / "planes.json");
   planes_file << document.dump(1) << '\n';
+  std::ofstream buildings_file(dir_ / "buildings.json");
+  buildings_file << buildings_json(buildings).dump(1) << '\n';
   std::ofstream vrml_file(dir_ / "map.wrl");
-  write_vrml(vrml_file, sorted, path_);
+  write_vrml(vrml_file, sorted, path_, buildings);
+  bool geojson_written = true;
+  if (origin) {
+    std::ofstream geojson_file(dir_ / "footprints.geojson");
+    geojson_file << footprints_geojson(buildings, hal::LocalEnuFrame(*origin)).dump(1) << '\n';
+    geojson_written = static_cast<bool>(geojson_file);
+  }
   jsonl_.flush();
   binary_.flush();
   trajectory_.flush();
-  if (!planes_file || !vrml_file || !jsonl_ || !binary_ || !trajectory_) {
+  buildings_jsonl_.flush();
+  if (!planes_file || !buildings_file || !vrml_file || !geojson_written || !jsonl_ || !binary_ ||
+      !trajectory_ || !buildings_jsonl_) {
     return "writing into " + dir_.string() + " failed (disk full?)";
   }
   return {};

@@ -2,17 +2,23 @@
 //   planes.jsonl    one JSON object per plane-list update (plane_json.hpp)
 //   planes.bin      the same updates as the binary plane stream (docs/log-formats.md)
 //   trajectory.csv  the smoothed poses, as they leave the localizer's smoothing window
-// and at the end: planes.json (the final plane list, 4.1) and map.wrl (VRML 2.0). With a UDP
+//   buildings.jsonl the buildings whenever a refit changed them: {"t_s", "buildings": [...]}
+// and at the end: planes.json (the final plane list, 4.1), buildings.json (4.2), map.wrl (VRML
+// 2.0, buildings' walls seen dark and virtual light) and footprints.geojson (WGS-84, when the
+// local frame's place on Earth is known). With a UDP
 // destination, each binary record also goes out as one datagram.
 #pragma once
 
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
 
+#include "blockmap/buildings/building.hpp"
+#include "blockmap/hal/geodesy.hpp"
 #include "blockmap/hal/linux/udp_sender.hpp"
 #include "blockmap/localize/localizer.hpp"
 #include "blockmap/msg/plane_patch.hpp"
@@ -31,12 +37,18 @@ class MapOutputs {
 
   void write_update(TimestampNs stamp_ns, std::span<const msg::PlaneChange> changes);
   void write_poses(std::span<const localize::Pose3> poses);
-  // planes.json and map.wrl; flushes everything. Empty when it worked, otherwise why not.
-  [[nodiscard]] std::string finish(std::span<const msg::PlanePatch> planes, std::uint64_t points,
-                                   double seconds);
+  // A line of buildings.jsonl when they differ from the last line written.
+  void write_buildings(TimestampNs stamp_ns, std::span<const buildings::Building> buildings);
+  // planes.json, buildings.json, map.wrl and (with an origin) footprints.geojson; flushes
+  // everything. Empty when it worked, otherwise why not.
+  [[nodiscard]] std::string finish(std::span<const msg::PlanePatch> planes,
+                                   std::span<const buildings::Building> buildings,
+                                   const std::optional<hal::GeodeticPoint>& origin,
+                                   std::uint64_t points, double seconds);
 
   [[nodiscard]] std::uint64_t updates() const noexcept { return updates_; }
   [[nodiscard]] std::uint64_t binary_bytes() const noexcept { return binary_bytes_; }
+  [[nodiscard]] std::uint64_t building_updates() const noexcept { return building_updates_; }
   [[nodiscard]] std::size_t trajectory_rows() const noexcept { return trajectory_rows_; }
   [[nodiscard]] const std::filesystem::path& dir() const noexcept { return dir_; }
 
@@ -45,6 +57,9 @@ class MapOutputs {
   std::ofstream jsonl_;
   std::ofstream binary_;
   std::ofstream trajectory_;
+  std::ofstream buildings_jsonl_;
+  std::string last_buildings_;  // the last buildings line's list, to write changes only
+  std::uint64_t building_updates_ = 0;
   std::ostream* trajectory_out_ = nullptr;  // trajectory_ or the caller's stream
   bool files_ = false;
   std::vector<std::uint8_t> record_;

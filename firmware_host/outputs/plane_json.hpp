@@ -3,6 +3,8 @@
 // stream (hal/protocol/plane_stream.hpp, docs/log-formats.md).
 #pragma once
 
+#include <vector>
+
 #include <span>
 
 #include <Eigen/Core>
@@ -22,6 +24,12 @@ namespace blockmap::cli {
 // cloud's origin reports in the file's frame).
 [[nodiscard]] nlohmann::json plane_json(const msg::PlanePatch& plane,
                                         const Eigen::Vector3d& origin_m = Eigen::Vector3d::Zero());
+
+// The planes of a plane list (4.1), as `blockmap planes` and `run` write it. Every mistake
+// throws std::invalid_argument naming the entry and key ("planes[3].normal: must be 3
+// numbers"); a polygon longer than msg::kMaxPolygonVertices keeps its convex outline's first
+// vertices only when it is no longer than that, else is refused.
+[[nodiscard]] std::vector<msg::PlanePatch> planes_from_json(const nlohmann::json& document);
 
 // One update: {"t_s": seconds, "added": [planes], "changed": [planes], "finalized": [planes],
 // "removed": [planes]},

@@ -1,23 +1,8 @@
 #include "blockmap/hal/config/planes_config.hpp"
 
-#include <fstream>
-#include <sstream>
-
 #include "toml_reader.hpp"
 
 namespace blockmap::hal::config {
-namespace {
-
-std::size_t capacity(TableReader& table, std::string_view key, std::size_t fallback) {
-  const std::int64_t value = table.integer_or(key, static_cast<std::int64_t>(fallback));
-  if (value < 1) {
-    table.fail(key, "must be >= 1");
-  }
-  return static_cast<std::size_t>(value);
-}
-
-}  // namespace
-
 planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view source,
                                          const planes::PlanesConfig& base) {
   const toml::table document = parse_document(text, source);
@@ -53,7 +38,7 @@ planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view
   }
   c.normal_kernel_deg = t.number_or("normal_kernel_deg", c.normal_kernel_deg);
   c.min_points_for_shape =
-      static_cast<std::uint32_t>(capacity(t, "min_points_for_shape", c.min_points_for_shape));
+      static_cast<std::uint32_t>(t.capacity_or("min_points_for_shape", c.min_points_for_shape));
   c.max_planarity_ratio = t.number_or("max_planarity_ratio", c.max_planarity_ratio);
   c.max_line_ratio = t.number_or("max_line_ratio", c.max_line_ratio);
   c.coarse_second_look = t.boolean_or("coarse_second_look", c.coarse_second_look);
@@ -61,12 +46,12 @@ planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view
   c.noisy_slab_per_noise = t.number_or("noisy_slab_per_noise", c.noisy_slab_per_noise);
   c.walls_from_lines = t.boolean_or("walls_from_lines", c.walls_from_lines);
   c.min_votes = t.number_or("min_votes", c.min_votes);
-  c.max_planes_per_section = capacity(t, "max_planes_per_section", c.max_planes_per_section);
+  c.max_planes_per_section = t.capacity_or("max_planes_per_section", c.max_planes_per_section);
   c.inlier_distance_m = t.number_or("inlier_distance_m", c.inlier_distance_m);
   c.max_inlier_distance_m = t.number_or("max_inlier_distance_m", c.max_inlier_distance_m);
   c.inlier_angle_deg = t.number_or("inlier_angle_deg", c.inlier_angle_deg);
   c.refine_iterations =
-      static_cast<std::uint32_t>(capacity(t, "refine_iterations", c.refine_iterations));
+      static_cast<std::uint32_t>(t.capacity_or("refine_iterations", c.refine_iterations));
   c.merge_angle_deg = t.number_or("merge_angle_deg", c.merge_angle_deg);
   c.merge_distance_m = t.number_or("merge_distance_m", c.merge_distance_m);
   c.merge_gap_m = t.number_or("merge_gap_m", c.merge_gap_m);
@@ -77,7 +62,7 @@ planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view
   c.ground_step_m = t.number_or("ground_step_m", c.ground_step_m);
   c.min_roof_height_m = t.number_or("min_roof_height_m", c.min_roof_height_m);
   c.min_reported_support = t.number_or("min_reported_support", c.min_reported_support);
-  c.max_samples = capacity(t, "max_samples", c.max_samples);
+  c.max_samples = t.capacity_or("max_samples", c.max_samples);
   if (const std::int64_t blocks =
           t.integer_or("max_blocks", static_cast<std::int64_t>(c.max_blocks));
       blocks < 0) {
@@ -85,9 +70,9 @@ planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view
   } else {
     c.max_blocks = static_cast<std::size_t>(blocks);
   }
-  c.max_samples_per_section = capacity(t, "max_samples_per_section", c.max_samples_per_section);
-  c.max_patches = capacity(t, "max_patches", c.max_patches);
-  c.max_planes = capacity(t, "max_planes", c.max_planes);
+  c.max_samples_per_section = t.capacity_or("max_samples_per_section", c.max_samples_per_section);
+  c.max_patches = t.capacity_or("max_patches", c.max_patches);
+  c.max_planes = t.capacity_or("max_planes", c.max_planes);
   t.finish();
   const std::string problem = planes::validate(c);
   if (!problem.empty()) {
@@ -98,13 +83,7 @@ planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view
 
 planes::PlanesConfig load_planes_config(const std::filesystem::path& path,
                                         const planes::PlanesConfig& base) {
-  std::ifstream file(path);
-  if (!file) {
-    throw ConfigError(path.string() + ": cannot open");
-  }
-  std::ostringstream text;
-  text << file.rdbuf();
-  return parse_planes_config(text.str(), path.string(), base);
+  return parse_planes_config(read_config_file(path), path.string(), base);
 }
 
 }  // namespace blockmap::hal::config

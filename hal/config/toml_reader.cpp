@@ -18,6 +18,16 @@ toml::table parse_document(std::string_view text, std::string_view source) {
   }
 }
 
+std::string read_config_file(const std::filesystem::path& path) {
+  std::ifstream file(path);
+  if (!file) {
+    throw ConfigError(path.string() + ": cannot open");
+  }
+  std::ostringstream text;
+  text << file.rdbuf();
+  return text.str();
+}
+
 std::string builtin_or_file_text(std::span<const std::string_view> names,
                                  std::span<const std::string_view> texts,
                                  std::string_view name_or_path, std::string_view kind,
@@ -109,6 +119,14 @@ std::int64_t TableReader::integer_or(std::string_view key, std::int64_t fallback
     return fallback;
   }
   return integer(key);
+}
+
+std::size_t TableReader::capacity_or(std::string_view key, std::size_t fallback) {
+  const std::int64_t value = integer_or(key, static_cast<std::int64_t>(fallback));
+  if (value < 1) {
+    fail(key, "must be >= 1");
+  }
+  return static_cast<std::size_t>(value);
 }
 
 bool TableReader::boolean_or(std::string_view key, bool fallback) {

@@ -8,6 +8,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <filesystem>
 #include <optional>
 #include <set>
 #include <span>
@@ -21,6 +22,9 @@ namespace blockmap::hal::config {
 
 // Parses a whole document; a syntax error becomes ConfigError "source:line:column: what".
 [[nodiscard]] toml::table parse_document(std::string_view text, std::string_view source);
+
+// A configuration file's text; ConfigError "path: cannot open" when it cannot be read.
+[[nodiscard]] std::string read_config_file(const std::filesystem::path& path);
 
 // A configuration named on the command line: a built-in one by name (`names[i]` -> `texts[i]`),
 // or a file when it looks like a path (a '/' or a .toml ending). `kind` ("world", "robot")
@@ -41,6 +45,8 @@ class TableReader {
   [[nodiscard]] double number_or(std::string_view key, double fallback);
   [[nodiscard]] std::int64_t integer(std::string_view key);
   [[nodiscard]] std::int64_t integer_or(std::string_view key, std::int64_t fallback);
+  // A capacity: a whole number >= 1 (fails naming the key otherwise).
+  [[nodiscard]] std::size_t capacity_or(std::string_view key, std::size_t fallback);
   [[nodiscard]] bool boolean_or(std::string_view key, bool fallback);
   [[nodiscard]] std::string string(std::string_view key);
   [[nodiscard]] std::string string_or(std::string_view key, std::string_view fallback);

@@ -76,6 +76,9 @@ std::string validate(const MapperConfig& config) {
   if (std::string problem = map::validate(registry_config(config)); !problem.empty()) {
     return problem;
   }
+  if (std::string problem = buildings::validate(config.buildings); !problem.empty()) {
+    return "buildings: " + problem;
+  }
   if (std::abs(config.window.voxel_size_m - config.planes.sample_size_m) > 1e-9) {
     return "mapper: window.voxel_size_m must equal planes.sample_size_m";
   }
@@ -111,6 +114,9 @@ void Mapper::init(Arena& arena, const MapperConfig& config) {
   window_.init(arena, config.window);
   detector_.init(arena, detector_config(config));
   registry_.init(arena, registry_config(config));
+  if (config.fit_buildings) {
+    building_fitter_.init(arena, config.buildings);
+  }
   pending_ = arena.allocate_array<Pending>(config.reorder_capacity, "mapper.reorder");
   if (config.pose_source == PoseSource::kExternal) {
     poses_ = arena.allocate_array<localize::Pose3>(config.max_external_poses, "mapper.poses");
@@ -128,6 +134,7 @@ std::size_t Mapper::arena_bytes(const MapperConfig& config) noexcept {
          map::VoxelWindow::arena_bytes(config.window) +
          planes::PlaneDetector::arena_budget_bytes(detector_config(config)) +
          map::PlaneRegistry::arena_bytes(registry_config(config)) +
+         (config.fit_buildings ? buildings::BuildingFitter::arena_bytes(config.buildings) : 0) +
          config.reorder_capacity * sizeof(Pending) +
          (config.pose_source == PoseSource::kExternal ? config.max_external_poses : 0) *
              sizeof(localize::Pose3) +
@@ -396,6 +403,16 @@ void Mapper::extract(TimestampNs stamp_ns) noexcept {
   counters_.scan_planes_rejected += detector_.stats().planes_excluded;
   registry_.update(planes, detector_.plane_moments());
   update_stamp_ns_ = stamp_ns;
+  refit_buildings();
+}
+
+void Mapper::refit_buildings() noexcept {
+  if (!config_.fit_buildings) {
+    return;
+  }
+  building_fitter_.begin();
+  registry_.for_each_plane([this](const msg::PlanePatch& plane) { building_fitter_.add(plane); });
+  building_fitter_.finish();
 }
 
 void Mapper::give_detector_the_window() noexcept {
@@ -456,6 +473,7 @@ bool Mapper::step() noexcept {
     finalized_ = true;
     registry_.finalize_all();
     update_stamp_ns_ = last_scan_ns_;
+    refit_buildings();
     changes_ = registry_.changes();
     return true;
   }

@@ -11,14 +11,6 @@ double cross(const Eigen::Vector2d& o, const Eigen::Vector2d& a, const Eigen::Ve
   return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
 }
 
-double point_segment_distance(const Eigen::Vector2d& p, const Eigen::Vector2d& a,
-                              const Eigen::Vector2d& b) {
-  const Eigen::Vector2d ab = b - a;
-  const double length_sq = ab.squaredNorm();
-  const double t = length_sq > 0.0 ? std::clamp((p - a).dot(ab) / length_sq, 0.0, 1.0) : 0.0;
-  return (a + t * ab - p).norm();
-}
-
 bool inside_convex(const Eigen::Vector2d& p, std::span<const Eigen::Vector2d> polygon) {
   if (polygon.size() < 3) {
     return false;
@@ -138,6 +130,27 @@ double polygon_area(std::span<const Eigen::Vector2d> polygon) noexcept {
     twice += p.x() * q.y() - q.x() * p.y();
   }
   return 0.5 * twice;
+}
+
+double point_segment_distance(const Eigen::Vector2d& p, const Eigen::Vector2d& a,
+                              const Eigen::Vector2d& b) noexcept {
+  const Eigen::Vector2d ab = b - a;
+  const double length_sq = ab.squaredNorm();
+  const double t = length_sq > 0.0 ? std::clamp((p - a).dot(ab) / length_sq, 0.0, 1.0) : 0.0;
+  return (a + t * ab - p).norm();
+}
+
+bool inside_polygon(const Eigen::Vector2d& p, std::span<const Eigen::Vector2d> polygon) noexcept {
+  bool inside = false;
+  for (std::size_t i = 0, j = polygon.size() - 1; i < polygon.size(); j = i++) {
+    const Eigen::Vector2d& a = polygon[i];
+    const Eigen::Vector2d& b = polygon[j];
+    if ((a.y() > p.y()) != (b.y() > p.y()) &&
+        p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) {
+      inside = !inside;
+    }
+  }
+  return inside;
 }
 
 }  // namespace blockmap::planes

@@ -176,7 +176,8 @@ TEST_F(ReplayMapping, MapsThePlanesWhenTheLogsHaveLasers) {
   const nlohmann::json list = nlohmann::json::parse(read_file(out / "planes.json"));
   EXPECT_FALSE(list["planes"].empty());
   EXPECT_GT(list["points"].get<double>(), 50000.0);
-  for (const char* name : {"planes.jsonl", "planes.bin", "map.wrl", "trajectory.csv"}) {
+  for (const char* name : {"planes.jsonl", "planes.bin", "map.wrl", "trajectory.csv",
+                           "buildings.json", "buildings.jsonl", "footprints.geojson"}) {
     EXPECT_TRUE(fs::exists(out / name)) << name;
   }
   fs::remove_all(out);

@@ -56,6 +56,12 @@ TEST(RunCommand, MapsTheSimulatedBlockAndWritesEveryOutput) {
   const std::string binary = read_file(out / "planes.bin");
   EXPECT_EQ(binary.substr(0, 8), "BMPLANE1");
   EXPECT_EQ(read_file(out / "map.wrl").rfind("#VRML V2.0 utf8\n", 0), 0u);
+  // Buildings (4.2), their stream, and the footprints in WGS-84 at the world's site.
+  const nlohmann::json buildings = nlohmann::json::parse(read_file(out / "buildings.json"));
+  ASSERT_TRUE(buildings["buildings"].is_array());
+  const nlohmann::json footprints = nlohmann::json::parse(read_file(out / "footprints.geojson"));
+  EXPECT_EQ(footprints["type"], "FeatureCollection");
+  EXPECT_TRUE(fs::exists(out / "buildings.jsonl"));
   EXPECT_EQ(
       read_file(out / "trajectory.csv").rfind("t_s,x_m,y_m,z_m,roll_rad,pitch_rad,yaw_rad\n", 0),
       0u);

@@ -110,6 +110,19 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   [[nodiscard]] std::span<const msg::PlanePatch> final_planes() const noexcept {
     return final_.first(final_count_);
   }
+  // Every plane a consumer of the stream holds now: the final ones, then the live ones as
+  // last reported (the building fitter reads the map this way, without a copy).
+  template <typename Visit>
+  void for_each_plane(Visit&& visit) const {
+    for (const msg::PlanePatch& plane : final_planes()) {
+      visit(plane);
+    }
+    for (const LivePlane& plane : live_) {
+      if (plane.in_use && plane.reported.id != 0) {
+        visit(plane.reported);
+      }
+    }
+  }
   [[nodiscard]] std::size_t live_count() const noexcept { return live_count_; }
   // The most changes one update can hold.
   [[nodiscard]] std::size_t change_capacity() const noexcept { return changes_.size(); }

@@ -23,6 +23,7 @@
 #include <span>
 #include <string>
 
+#include "blockmap/buildings/building_fitter.hpp"
 #include "blockmap/core/arena.hpp"
 #include "blockmap/localize/localizer.hpp"
 #include "blockmap/map/plane_registry.hpp"
@@ -64,6 +65,13 @@ enum class PoseSource : std::uint8_t {
   return config;
 }
 
+[[nodiscard]] inline buildings::BuildingsConfig mapper_buildings_config() noexcept {
+  buildings::BuildingsConfig config;
+  config.max_walls = 512;
+  config.max_buildings = 64;
+  return config;
+}
+
 struct MapperConfig {
   localize::LocalizerConfig localizer = mapper_localizer_config();
   PoseSource pose_source = PoseSource::kLocalizer;
@@ -93,6 +101,10 @@ struct MapperConfig {
   double scan_plane_angle_deg = 10.0;
   double scan_plane_distance_m = 0.5;
   double scan_plane_spacing_m = 0.5;
+  // Buildings from the map's walls (seed, section IV), fitted again after every extraction:
+  // the estimate improves as data arrives. Capacities for one window's city block.
+  bool fit_buildings = true;
+  buildings::BuildingsConfig buildings = mapper_buildings_config();
   double reorder_window_s = 0.25;  // a message this much older than the newest is released
   std::size_t reorder_capacity = 512;
   std::size_t scan_queue_capacity = 128;  // scans wait for the reorder window and the poses
@@ -169,6 +181,15 @@ class Mapper {
   [[nodiscard]] std::span<const msg::PlanePatch> final_planes() const noexcept {
     return registry_.final_planes();
   }
+  // The buildings of the map as it stands (refitted after every extraction and at the end);
+  // empty when fit_buildings is off. Valid until the next step().
+  [[nodiscard]] std::span<const buildings::Building> buildings() const noexcept {
+    return config_.fit_buildings ? building_fitter_.buildings()
+                                 : std::span<const buildings::Building>{};
+  }
+  [[nodiscard]] const buildings::BuildingFitter& building_fitter() const noexcept {
+    return building_fitter_;
+  }
   [[nodiscard]] const MapperConfig& config() const noexcept { return config_; }
   [[nodiscard]] const MapperCounters& counters() const noexcept { return counters_; }
   [[nodiscard]] const map::VoxelWindow& window() const noexcept { return window_; }
@@ -208,6 +229,7 @@ class Mapper {
   // The window's samples into the detector: all of them, or those that changed.
   void give_detector_the_window() noexcept;
   void extract(TimestampNs stamp_ns) noexcept;
+  void refit_buildings() noexcept;
 
   MapperConfig config_;
   localize::Localizer localizer_;
@@ -217,6 +239,7 @@ class Mapper {
   map::VoxelWindow window_;
   planes::PlaneDetector detector_;
   map::PlaneRegistry registry_;
+  buildings::BuildingFitter building_fitter_;
 
   std::span<Pending> pending_;  // ordered by time, oldest first
   std::size_t pending_count_ = 0;

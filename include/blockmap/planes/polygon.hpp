@@ -31,4 +31,12 @@ std::size_t simplify_polygon(std::span<Eigen::Vector2d> polygon, std::size_t siz
 
 [[nodiscard]] double polygon_area(std::span<const Eigen::Vector2d> polygon) noexcept;
 
+// The distance from p to the segment a-b.
+[[nodiscard]] double point_segment_distance(const Eigen::Vector2d& p, const Eigen::Vector2d& a,
+                                            const Eigen::Vector2d& b) noexcept;
+
+// Whether p lies inside a simple polygon, convex or not (even-odd rule).
+[[nodiscard]] bool inside_polygon(const Eigen::Vector2d& p,
+                                  std::span<const Eigen::Vector2d> polygon) noexcept;
+
 }  // namespace blockmap::planes

@@ -1,0 +1,33 @@
+// Buildings out: the buildings JSON (ARCHITECTURE.md 4.2), GeoJSON footprints in WGS-84 that
+// GIS tools open (RFC 7946), and a top-view picture (SVG) of points, walls and footprints with
+// the observed walls dark and the virtual ones light and dashed, as the paper draws them.
+#pragma once
+
+#include <ostream>
+#include <span>
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+
+#include "blockmap/buildings/building.hpp"
+#include "blockmap/hal/geodesy.hpp"
+#include "blockmap/msg/plane_patch.hpp"
+
+namespace blockmap::cli {
+
+// {"buildings": [{"id", "shape", "height", "ground_z", "confidence", "height_from": "roof" |
+// "walls", "footprint": [[x, y], ...], "walls": [{"p0", "p1", "z0", "z1", "virtual",
+// "plane"}]}]}; "plane" is null for a virtual wall.
+[[nodiscard]] nlohmann::json buildings_json(std::span<const buildings::Building> buildings);
+
+// A FeatureCollection: one Polygon per building with a footprint (closed, counter-clockwise,
+// [longitude, latitude]) and its id, shape, height and confidence as properties.
+[[nodiscard]] nlohmann::json footprints_geojson(std::span<const buildings::Building> buildings,
+                                                const hal::LocalEnuFrame& frame);
+
+// The picture from above; points may be empty (a plane list has none).
+void write_buildings_picture(std::ostream& out, std::span<const Eigen::Vector3f> points_m,
+                             std::span<const msg::PlanePatch> planes,
+                             std::span<const buildings::Building> buildings);
+
+}  // namespace blockmap::cli

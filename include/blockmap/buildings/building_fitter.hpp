@@ -1,0 +1,147 @@
+// Buildings from walls (seed, section IV): vertical planes become footprint segments, segments
+// that meet at corners become a building, and each building is fitted to a rectangle, an L or
+// a T, in that order of preference, with virtual walls where the robot saw nothing.
+//
+//   walls_to_segments  -> group_segments -> for each group: building_frame ->
+//   propose models (rect, L x 4 corners, T x 4 sides) -> score each -> best -> walls
+//
+// Everything comes from an arena at init; fit() allocates nothing.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+#include <Eigen/Core>
+
+#include "blockmap/buildings/building.hpp"
+#include "blockmap/buildings/buildings_config.hpp"
+#include "blockmap/core/arena.hpp"
+#include "blockmap/msg/plane_patch.hpp"
+
+namespace blockmap::buildings {
+
+// A wall plane seen from above: the horizontal extent of its polygon on its line.
+struct WallSegment {
+  Eigen::Vector2d p0_m = Eigen::Vector2d::Zero();
+  Eigen::Vector2d p1_m = Eigen::Vector2d::Zero();
+  double z0_m = 0.0;
+  double z1_m = 0.0;
+  std::uint32_t plane_id = 0;
+  bool is_tall = true;   // labelled a wall by the detector (else a low vertical plane)
+  double support = 0.0;  // the plane's points
+};
+
+// The segment of a vertical plane (within 10 degrees), or false when the plane is not vertical
+// or has no extent.
+[[nodiscard]] bool wall_segment_of(const msg::PlanePatch& plane, WallSegment& segment) noexcept;
+
+class BuildingFitter {
+ public:
+  struct Counters {
+    std::uint64_t fits = 0;
+    std::uint64_t walls_used = 0;
+    std::uint64_t walls_dropped_full = 0;      // more wall segments than max_walls
+    std::uint64_t buildings_dropped_full = 0;  // more groups than max_buildings
+    std::uint64_t roofs_dropped_full = 0;      // more roof planes than max_walls
+  };
+
+  void init(Arena& arena, const BuildingsConfig& config);
+
+  // The buildings of these planes (walls make footprints, roofs give heights). The result
+  // stays valid until the next fit() or begin().
+  std::span<const Building> fit(std::span<const msg::PlanePatch> planes) noexcept;
+  // The same, one plane at a time (planes kept apart, as a plane registry keeps its live and
+  // final planes): begin(), add() each, finish().
+  void begin() noexcept;
+  void add(const msg::PlanePatch& plane) noexcept;
+  std::span<const Building> finish() noexcept;
+  // The buildings of the last finish().
+  [[nodiscard]] std::span<const Building> buildings() const noexcept {
+    return buildings_.first(building_count_);
+  }
+
+  [[nodiscard]] const Counters& counters() const noexcept { return counters_; }
+  [[nodiscard]] std::size_t memory_bytes() const noexcept;
+  [[nodiscard]] static std::size_t arena_bytes(const BuildingsConfig& config) noexcept;
+
+  // One footprint model in the building's own frame (u along its main axis, v across): a
+  // rectilinear polygon, counter-clockwise.
+  struct Model {
+    BuildingShape shape = BuildingShape::kRect;
+    std::array<Eigen::Vector2d, kMaxFootprintVertices> corners{};
+    std::uint8_t size = 0;
+  };
+
+  // A wall segment in its building's frame (u, v), snapped to the nearer axis.
+  struct Piece {
+    Eigen::Vector2d a = Eigen::Vector2d::Zero();
+    Eigen::Vector2d b = Eigen::Vector2d::Zero();
+    int axis = 0;        // 0: runs along u (its level is a v); 1: runs along v
+    double level = 0.0;  // the across coordinate of its midpoint
+    double lo = 0.0;     // its interval along its axis
+    double hi = 0.0;
+    std::uint32_t segment = 0;
+    // Whether its ends tell where a notch is, and an edge in line with it was in view: a wall,
+    // or a low trace seen densely (BuildingsConfig::min_low_wall_support_per_m). A sparse low
+    // trace was seen from afar or through gaps (a hedge), and stops where the view stopped.
+    bool trusted_ends = true;
+  };
+  // The bounding box of the pieces: lo and hi along u (index 0) and v (index 1).
+  struct Box {
+    std::array<double, 2> lo{};
+    std::array<double, 2> hi{};
+  };
+
+ private:
+  struct ModelScore {
+    double unexplained_m = 0.0;  // observed length farther than fit_tolerance_m from the model
+    double missed_m = 0.0;       // model edge length in line with an observed wall, not seen
+    double distance_m = 0.0;     // length-weighted mean distance of what is explained
+    double cost = 0.0;
+  };
+
+  std::uint32_t find_root(std::uint32_t i) noexcept;
+  void group_segments() noexcept;
+  [[nodiscard]] bool same_building(const WallSegment& a, const WallSegment& b) const noexcept;
+  // Fits the group of segments listed in group_members_ into `building`; false when the group
+  // is too small to be a building.
+  bool fit_group(std::span<const std::uint32_t> members, Building& building) noexcept;
+  void to_pieces(std::span<const std::uint32_t> members, double axis_rad) noexcept;
+  void merge_parallel_pieces() noexcept;
+  [[nodiscard]] Box bounding_box() const noexcept;
+  void propose_models(const Box& box) noexcept;
+  // An L: the box with the notch at corner (side_u, side_v) (0: lo, 1: hi).
+  void propose_l(const Box& box, int side_u, int side_v) noexcept;
+  // A T whose bar runs along `bar_axis` and whose stem points to `stem_side` of the other axis.
+  void propose_t(const Box& box, int bar_axis, int stem_side) noexcept;
+  void add_model(BuildingShape shape, const Box& box,
+                 const std::array<const Eigen::Vector2d*, 4>& inner_corners) noexcept;
+  [[nodiscard]] ModelScore score(const Model& model) const noexcept;
+  void emit_walls(const Model& model, double axis_rad, Building& building) const noexcept;
+  void set_height(Building& building) const noexcept;
+
+  BuildingsConfig config_;
+  Counters counters_;
+  std::span<WallSegment> segments_;
+  std::size_t segment_count_ = 0;
+  // Roof planes, for the buildings' heights.
+  struct Roof {
+    Eigen::Vector2d centroid_m = Eigen::Vector2d::Zero();
+    double z_m = 0.0;
+    double support = 0.0;
+  };
+  std::span<Roof> roofs_;
+  std::size_t roof_count_ = 0;
+  std::span<std::uint32_t> parent_;
+  std::span<std::uint32_t> order_;  // segment indices, grouped
+  std::span<Piece> pieces_;
+  std::size_t piece_count_ = 0;
+  std::array<Model, 9> models_{};  // rect, 4 L, 4 T
+  std::size_t model_count_ = 0;
+  std::span<Building> buildings_;
+  std::size_t building_count_ = 0;
+};
+
+}  // namespace blockmap::buildings
