@@ -588,6 +588,11 @@ BuildingFitter::ModelScore BuildingFitter::score(const Model& model) const noexc
   const std::span<const Piece> pieces = pieces_.first(piece_count_);
   ModelScore result;
   double explained_m = 0.0;
+  std::array<Edge, kMaxFootprintVertices> edges{};
+  for (std::size_t k = 0; k < model.size; ++k) {
+    edges[k] = edge_of(model, k);
+  }
+  const std::span<const Edge> model_edges(edges.data(), model.size);
   // Observed walls the model does not explain, and how far off the rest lie.
   for (const Piece& piece : pieces) {
     const double length_m = (piece.b - piece.a).norm();
@@ -597,8 +602,7 @@ BuildingFitter::ModelScore BuildingFitter::score(const Model& model) const noexc
       const Eigen::Vector2d p = piece.a + (static_cast<double>(i) + 0.5) /
                                               static_cast<double>(samples) * (piece.b - piece.a);
       double nearest_m = std::numeric_limits<double>::infinity();
-      for (std::size_t k = 0; k < model.size; ++k) {
-        const Edge edge = edge_of(model, k);
+      for (const Edge& edge : model_edges) {
         if (edge.axis == piece.axis) {
           nearest_m = std::min(nearest_m, planes::point_segment_distance(p, edge.point(edge.from),
                                                                          edge.point(edge.to)));
@@ -617,8 +621,7 @@ BuildingFitter::ModelScore BuildingFitter::score(const Model& model) const noexc
   }
   // Model edges in line with an observed wall but not seen along the rest: in view of where
   // that wall was seen from, so a model that needs them there is less likely.
-  for (std::size_t k = 0; k < model.size; ++k) {
-    const Edge edge = edge_of(model, k);
+  for (const Edge& edge : model_edges) {
     bool supported = false;
     for (const Piece& piece : pieces) {
       supported = supported || (wall_on_line(piece, edge.axis, edge.level, tolerance_m) &&

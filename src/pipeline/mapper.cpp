@@ -407,7 +407,8 @@ void Mapper::extract(TimestampNs stamp_ns) noexcept {
 }
 
 void Mapper::refit_buildings() noexcept {
-  if (!config_.fit_buildings) {
+  // The buildings follow from the registry's planes alone: no change there, none here.
+  if (!config_.fit_buildings || registry_.changes().empty()) {
     return;
   }
   building_fitter_.begin();

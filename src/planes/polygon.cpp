@@ -132,14 +132,6 @@ double polygon_area(std::span<const Eigen::Vector2d> polygon) noexcept {
   return 0.5 * twice;
 }
 
-double point_segment_distance(const Eigen::Vector2d& p, const Eigen::Vector2d& a,
-                              const Eigen::Vector2d& b) noexcept {
-  const Eigen::Vector2d ab = b - a;
-  const double length_sq = ab.squaredNorm();
-  const double t = length_sq > 0.0 ? std::clamp((p - a).dot(ab) / length_sq, 0.0, 1.0) : 0.0;
-  return (a + t * ab - p).norm();
-}
-
 bool inside_polygon(const Eigen::Vector2d& p, std::span<const Eigen::Vector2d> polygon) noexcept {
   bool inside = false;
   for (std::size_t i = 0, j = polygon.size() - 1; i < polygon.size(); j = i++) {

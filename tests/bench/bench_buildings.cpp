@@ -4,8 +4,6 @@
 // hedges, posts: small vertical planes the fitter must look at and leave).
 #include <benchmark/benchmark.h>
 
-#include <cmath>
-#include <numbers>
 #include <vector>
 
 #include "blockmap/buildings/building_fitter.hpp"
@@ -17,30 +15,17 @@ namespace {
 using blockmap::msg::PlanePatch;
 using Eigen::Vector2d;
 
-std::vector<Vector2d> placed(const std::vector<Vector2d>& plan, double yaw_deg,
-                             const Vector2d& offset_m) {
-  const double yaw = yaw_deg * std::numbers::pi / 180.0;
-  std::vector<Vector2d> corners;
-  corners.reserve(plan.size());
-  for (const Vector2d& p : plan) {
-    corners.emplace_back(std::cos(yaw) * p.x() - std::sin(yaw) * p.y() + offset_m.x(),
-                         std::sin(yaw) * p.x() + std::cos(yaw) * p.y() + offset_m.y());
-  }
-  return corners;
-}
-
 std::vector<PlanePatch> city_block(std::size_t buildings, std::size_t clutter) {
-  const std::vector<Vector2d> rect{{-10, -6}, {10, -6}, {10, 6}, {-10, 6}};
-  const std::vector<Vector2d> l_shape{{-10, -7}, {10, -7}, {10, 1}, {2, 1}, {2, 7}, {-10, 7}};
-  const std::vector<Vector2d> t_shape{{-4, -8}, {4, -8},  {4, 2},   {12, 2},
-                                      {12, 8},  {-12, 8}, {-12, 2}, {-4, 2}};
   std::vector<PlanePatch> planes;
   std::uint32_t id = 1;
   for (std::size_t b = 0; b < buildings; ++b) {
-    const std::vector<Vector2d>& plan = b % 3 == 0 ? rect : (b % 3 == 1 ? l_shape : t_shape);
+    const std::vector<Vector2d>& plan =
+        b % 3 == 0 ? blockmap::testing::kRectPlan
+                   : (b % 3 == 1 ? blockmap::testing::kLPlan : blockmap::testing::kTPlan);
     const std::size_t row = b / 5;  // two rows of five
     const Vector2d centre(40.0 * static_cast<double>(b % 5), 45.0 * static_cast<double>(row));
-    const std::vector<Vector2d> corners = placed(plan, 7.0 * static_cast<double>(b), centre);
+    const std::vector<Vector2d> corners =
+        blockmap::testing::placed(plan, 7.0 * static_cast<double>(b), centre);
     std::vector<PlanePatch> walls = blockmap::testing::walls_around(corners, 9.0, 0.2, id);
     id += static_cast<std::uint32_t>(walls.size());
     // The back wall never seen; the front broken in two by a tree.

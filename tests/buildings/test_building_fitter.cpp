@@ -2,8 +2,6 @@
 // draws, and which walls it marks virtual (seed, section IV).
 #include <gtest/gtest.h>
 
-#include <cmath>
-#include <numbers>
 #include <vector>
 
 #include "blockmap/buildings/building_fitter.hpp"
@@ -15,19 +13,11 @@ namespace blockmap::buildings {
 namespace {
 
 using Eigen::Vector2d;
+using testing::kLPlan;
+using testing::kRectPlan;
+using testing::kTPlan;
+using testing::placed;
 using testing::vertical_plane;
-
-// The ground plan turned by yaw_deg about the origin and moved by offset_m: the fitter must
-// not care where a building stands or which way it faces.
-std::vector<Vector2d> placed(std::vector<Vector2d> corners, double yaw_deg,
-                             const Vector2d& offset_m) {
-  const double yaw = yaw_deg * std::numbers::pi / 180.0;
-  const Eigen::Matrix2d rotation{{std::cos(yaw), -std::sin(yaw)}, {std::sin(yaw), std::cos(yaw)}};
-  for (Vector2d& corner : corners) {
-    corner = rotation * corner + offset_m;
-  }
-  return corners;
-}
 
 // The walls of `plan` whose index is in `seen` (the rest were never seen).
 std::vector<msg::PlanePatch> seen_walls(const std::vector<Vector2d>& plan,
@@ -70,15 +60,8 @@ class BuildingFitterTest : public ::testing::Test {
   BuildingFitter fitter_;
 };
 
-// Rect 20 x 12, L 20 x 14 without an 8 x 6 corner, T of a 24 x 6 bar and an 8 x 10 stem, as
-// the simulated worlds build them (counter-clockwise from the front's left end).
-const std::vector<Vector2d> kRect{{-10, -6}, {10, -6}, {10, 6}, {-10, 6}};
-const std::vector<Vector2d> kL{{-10, -7}, {10, -7}, {10, 1}, {2, 1}, {2, 7}, {-10, 7}};
-const std::vector<Vector2d> kT{{-4, -8}, {4, -8},  {4, 2},   {12, 2},
-                               {12, 8},  {-12, 8}, {-12, 2}, {-4, 2}};
-
 TEST_F(BuildingFitterTest, FourWallsMakeTheirRectangle) {
-  const std::vector<Vector2d> plan = placed(kRect, 30.0, {40.0, -25.0});
+  const std::vector<Vector2d> plan = placed(kRectPlan, 30.0, {40.0, -25.0});
   const auto buildings = fit(seen_walls(plan, {0, 1, 2, 3}));
   ASSERT_EQ(buildings.size(), 1u);
   EXPECT_EQ(buildings[0].shape, BuildingShape::kRect);
@@ -91,7 +74,7 @@ TEST_F(BuildingFitterTest, FourWallsMakeTheirRectangle) {
 
 // The paper's figure 3d: two walls of a rectangular building, the other two estimated.
 TEST_F(BuildingFitterTest, TwoWallsAtACornerMakeARectangleWithTwoVirtualWalls) {
-  const std::vector<Vector2d> plan = placed(kRect, -70.0, {5.0, 5.0});
+  const std::vector<Vector2d> plan = placed(kRectPlan, -70.0, {5.0, 5.0});
   const auto buildings = fit(seen_walls(plan, {0, 1}));
   ASSERT_EQ(buildings.size(), 1u);
   const Building& building = buildings[0];
@@ -108,7 +91,7 @@ TEST_F(BuildingFitterTest, TwoWallsAtACornerMakeARectangleWithTwoVirtualWalls) {
 
 TEST_F(BuildingFitterTest, AWallStoppingShortOfTheCornerMakesAnL) {
   // Seen from the front: the front, the west side whole, the east side up to the notch.
-  const std::vector<Vector2d> plan = placed(kL, 12.0, {-30.0, 60.0});
+  const std::vector<Vector2d> plan = placed(kLPlan, 12.0, {-30.0, 60.0});
   const auto buildings = fit(seen_walls(plan, {0, 1, 5}));
   ASSERT_EQ(buildings.size(), 1u);
   EXPECT_EQ(buildings[0].shape, BuildingShape::kL);
@@ -119,7 +102,7 @@ TEST_F(BuildingFitterTest, AWallStoppingShortOfTheCornerMakesAnL) {
 }
 
 TEST_F(BuildingFitterTest, NotchWallsMakeAnLExactly) {
-  const std::vector<Vector2d> plan = placed(kL, 0.0, {0.0, 0.0});
+  const std::vector<Vector2d> plan = placed(kLPlan, 0.0, {0.0, 0.0});
   const auto buildings = fit(seen_walls(plan, {0, 1, 2, 3}));
   ASSERT_EQ(buildings.size(), 1u);
   EXPECT_EQ(buildings[0].shape, BuildingShape::kL);
@@ -129,7 +112,7 @@ TEST_F(BuildingFitterTest, NotchWallsMakeAnLExactly) {
 
 TEST_F(BuildingFitterTest, StemAndBarWallsMakeAT) {
   // Everything but the bar's back.
-  const std::vector<Vector2d> plan = placed(kT, 200.0, {100.0, 10.0});
+  const std::vector<Vector2d> plan = placed(kTPlan, 200.0, {100.0, 10.0});
   const auto buildings = fit(seen_walls(plan, {0, 1, 2, 3, 5, 6, 7}));
   ASSERT_EQ(buildings.size(), 1u);
   EXPECT_EQ(buildings[0].shape, BuildingShape::kT);
@@ -139,7 +122,7 @@ TEST_F(BuildingFitterTest, StemAndBarWallsMakeAT) {
 
 TEST_F(BuildingFitterTest, ARectangleSeenWholeStaysARectangleEvenWithGaps) {
   // A tree hides 3 m of the front, a car 2 m of the side: short virtual walls close the gaps.
-  const std::vector<Vector2d> plan = kRect;
+  const std::vector<Vector2d> plan = kRectPlan;
   std::vector<msg::PlanePatch> planes = seen_walls(plan, {1, 2, 3});
   planes.push_back(vertical_plane({-9.8, -6.0}, {-1.5, -6.0}, 0.0, 9.0, 10));
   planes.push_back(vertical_plane({1.5, -6.0}, {9.8, -6.0}, 0.0, 9.0, 11));
@@ -157,7 +140,7 @@ TEST_F(BuildingFitterTest, ARectangleSeenWholeStaysARectangleEvenWithGaps) {
 }
 
 TEST_F(BuildingFitterTest, TheRoofGivesTheHeight) {
-  std::vector<msg::PlanePatch> planes = seen_walls(kRect, {0, 1}, 2.5);  // seen low, from afar
+  std::vector<msg::PlanePatch> planes = seen_walls(kRectPlan, {0, 1}, 2.5);  // seen low, from afar
   planes.push_back(testing::flat_roof({-9.0, -5.0}, {9.0, 5.0}, 11.0, 20));
   planes.push_back(testing::flat_roof({30.0, 30.0}, {40.0, 40.0}, 30.0, 21));  // elsewhere
   const auto buildings = fit(planes);
@@ -167,8 +150,8 @@ TEST_F(BuildingFitterTest, TheRoofGivesTheHeight) {
 }
 
 TEST_F(BuildingFitterTest, BuildingsApartAreApartAndAWallAloneIsNone) {
-  std::vector<msg::PlanePatch> planes = seen_walls(kRect, {0, 1});
-  for (const msg::PlanePatch& plane : seen_walls(placed(kT, 0.0, {60.0, 0.0}), {0, 1, 2, 3})) {
+  std::vector<msg::PlanePatch> planes = seen_walls(kRectPlan, {0, 1});
+  for (const msg::PlanePatch& plane : seen_walls(placed(kTPlan, 0.0, {60.0, 0.0}), {0, 1, 2, 3})) {
     planes.push_back(plane);
     planes.back().id += 100;
   }
@@ -199,7 +182,8 @@ TEST_F(BuildingFitterTest, ACrossShapedBuildingIsUnknownRatherThanInvented) {
 }
 
 TEST_F(BuildingFitterTest, TheSameWallsGiveTheSameBuildingsBitForBit) {
-  const std::vector<msg::PlanePatch> planes = seen_walls(placed(kL, 33.0, {7.0, 8.0}), {0, 1, 5});
+  const std::vector<msg::PlanePatch> planes =
+      seen_walls(placed(kLPlan, 33.0, {7.0, 8.0}), {0, 1, 5});
   const Building first = fit(planes)[0];
   const Building second = fit(planes)[0];
   EXPECT_EQ(first.shape, second.shape);

@@ -2,7 +2,9 @@
 // ground plan, as the plane detector reports them (a rectangle polygon on the plane).
 #pragma once
 
+#include <cmath>
 #include <cstdint>
+#include <numbers>
 #include <vector>
 
 #include <Eigen/Core>
@@ -64,6 +66,26 @@ inline std::vector<msg::PlanePatch> walls_around(const std::vector<Eigen::Vector
                                     first_id + static_cast<std::uint32_t>(k)));
   }
   return planes;
+}
+
+// Ground plans as the simulated worlds build them (counter-clockwise from the front's left
+// end): a rect 20 x 12 m, an L 20 x 14 m without an 8 x 6 m corner, a T of a 24 x 6 m bar and
+// an 8 x 10 m stem.
+inline const std::vector<Eigen::Vector2d> kRectPlan{{-10, -6}, {10, -6}, {10, 6}, {-10, 6}};
+inline const std::vector<Eigen::Vector2d> kLPlan{{-10, -7}, {10, -7}, {10, 1},
+                                                 {2, 1},    {2, 7},   {-10, 7}};
+inline const std::vector<Eigen::Vector2d> kTPlan{{-4, -8}, {4, -8},  {4, 2},   {12, 2},
+                                                 {12, 8},  {-12, 8}, {-12, 2}, {-4, 2}};
+
+// The ground plan turned by yaw_deg about the origin and moved by offset_m.
+inline std::vector<Eigen::Vector2d> placed(std::vector<Eigen::Vector2d> corners, double yaw_deg,
+                                           const Eigen::Vector2d& offset_m) {
+  const double yaw = yaw_deg * std::numbers::pi / 180.0;
+  const Eigen::Matrix2d rotation{{std::cos(yaw), -std::sin(yaw)}, {std::sin(yaw), std::cos(yaw)}};
+  for (Eigen::Vector2d& corner : corners) {
+    corner = rotation * corner + offset_m;
+  }
+  return corners;
 }
 
 }  // namespace blockmap::testing

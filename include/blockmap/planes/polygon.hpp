@@ -2,6 +2,7 @@
 // simplification and the gap between two of them. No allocation: callers pass the buffers.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <span>
 #include <utility>
@@ -31,9 +32,16 @@ std::size_t simplify_polygon(std::span<Eigen::Vector2d> polygon, std::size_t siz
 
 [[nodiscard]] double polygon_area(std::span<const Eigen::Vector2d> polygon) noexcept;
 
-// The distance from p to the segment a-b.
-[[nodiscard]] double point_segment_distance(const Eigen::Vector2d& p, const Eigen::Vector2d& a,
-                                            const Eigen::Vector2d& b) noexcept;
+// The distance from p to the segment a-b. Inline: building fitting calls it in its innermost
+// loop, from another translation unit.
+[[nodiscard]] inline double point_segment_distance(const Eigen::Vector2d& p,
+                                                   const Eigen::Vector2d& a,
+                                                   const Eigen::Vector2d& b) noexcept {
+  const Eigen::Vector2d ab = b - a;
+  const double length_sq = ab.squaredNorm();
+  const double t = length_sq > 0.0 ? std::clamp((p - a).dot(ab) / length_sq, 0.0, 1.0) : 0.0;
+  return (a + t * ab - p).norm();
+}
 
 // Whether p lies inside a simple polygon, convex or not (even-odd rule).
 [[nodiscard]] bool inside_polygon(const Eigen::Vector2d& p,
