@@ -1,6 +1,7 @@
 // `blockmap buildings INPUT [--config FILE] [--out FILE] [--vrml FILE] [--svg FILE]
-// [--geojson FILE --origin LAT,LON,HEIGHT]`: the buildings (ARCHITECTURE.md 4.2) of a plane
-// list (4.1, as `planes` and `run` write it) or of a point cloud file (planes detected first).
+// [--points CLOUD] [--geojson FILE --origin LAT,LON,HEIGHT]`: the buildings (ARCHITECTURE.md 4.2)
+// of a plane list (4.1, as `planes` and `run` write it) or of a point cloud file (planes detected
+// first).
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <fstream>
@@ -34,6 +35,7 @@ struct BuildingsOptions {
   std::string out;
   std::string vrml;
   std::string svg;
+  std::string points;  // a cloud drawn under the --svg picture
   std::string geojson;
   std::string origin;
 };
@@ -99,6 +101,9 @@ int fit_buildings(const BuildingsOptions& options, std::ostream& out, std::ostre
     cloud = hal::cloud::read_point_cloud(options.input);
     planes = detect_cloud_planes(cloud, planes_config, options.input, err).planes;
   }
+  if (!options.points.empty()) {
+    cloud = hal::cloud::read_point_cloud(options.points);
+  }
 
   Arena arena(buildings::BuildingFitter::arena_bytes(config));
   buildings::BuildingFitter fitter;
@@ -161,6 +166,9 @@ Command add_buildings_command(CLI::App& app) {
   command->add_option("--vrml", options->vrml,
                       "also write a VRML 2.0 map: planes, and walls seen dark, virtual light");
   command->add_option("--svg", options->svg, "also draw a top view of it all into this SVG");
+  command->add_option("--points", options->points,
+                      "draw this point cloud under the --svg picture (run/replay --cloud "
+                      "writes cloud.ply); a cloud INPUT draws its own");
   command->add_option("--geojson", options->geojson,
                       "also write the footprints as GeoJSON in WGS-84 (needs --origin)");
   command->add_option("--origin", options->origin,

@@ -4,8 +4,10 @@
 #include <cstdio>
 #include <ostream>
 
+#include "blockmap/hal/cloud/point_cloud_file.hpp"
 #include "blockmap/hal/config/buildings_config.hpp"
 #include "blockmap/hal/config/planes_config.hpp"
+#include "blockmap/hal/config/window_config.hpp"
 #include "blockmap/hal/sim/simulated_robot.hpp"
 
 namespace blockmap::cli {
@@ -21,6 +23,7 @@ pipeline::MapperConfig mapper_config_for(const hal::sim::RobotSpec& robot,
   if (!options.config.empty()) {
     config.planes = hal::config::load_planes_config(options.config, config.planes);
     config.buildings = hal::config::load_buildings_config(options.config, config.buildings);
+    config = hal::config::load_window_config(options.config, config);
   }
   config.window.voxel_size_m = config.planes.sample_size_m;
   return config;
@@ -65,6 +68,10 @@ std::string MappingSession::start(const pipeline::MapperConfig& config,
   if (options.trajectory_only) {
     return outputs_.open_trajectory_only(options.out);
   }
+  if (options.cloud) {
+    cloud_.emplace();
+    mapper_.set_point_sink(&*cloud_);
+  }
   return outputs_.open(options.out, mapper_.registry().change_capacity(), options.udp);
 }
 
@@ -84,8 +91,12 @@ std::string MappingSession::finish(const std::optional<hal::GeodeticPoint>& orig
   outputs_.write_poses(
       std::span<const localize::Pose3>(poses_.data(), mapper_.smoothed_poses(poses_)));
   wall_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
-  return outputs_.finish(mapper_.final_planes(), mapper_.buildings(), origin,
-                         mapper_.counters().points, wall_s_);
+  std::string problem = outputs_.finish(mapper_.final_planes(), mapper_.buildings(), origin,
+                                        mapper_.counters().points, wall_s_);
+  if (problem.empty() && cloud_) {
+    hal::cloud::write_ply(outputs_.dir() / "cloud.ply", cloud_->points());
+  }
+  return problem;
 }
 
 void MappingSession::report(std::ostream& err, double data_s) const {

@@ -8,7 +8,9 @@
 #include <iosfwd>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
+#include <vector>
 
 #include "blockmap/core/arena.hpp"
 #include "blockmap/hal/geodesy.hpp"
@@ -20,10 +22,24 @@ namespace blockmap::cli {
 
 struct MappingOptions {
   std::string out;
-  std::string config;  // a TOML file whose [planes] table sets the detector
+  std::string config;  // a TOML file: [planes], [buildings], [window], [projection]
   std::string udp;     // HOST:PORT for the binary plane stream, or empty
   double budget_mib = 64.0;
   bool trajectory_only = false;  // localize only: trajectory.csv, no planes
+  bool cloud = false;            // also cloud.ply: every projected point (kept in memory)
+};
+
+// Every projected point, for cloud.ply. A tool for looking at a run afterwards, not part of
+// the onboard pipeline: it grows with the run.
+class CloudRecorder final : public pipeline::PointSink {
+ public:
+  void on_points(std::span<const Eigen::Vector3f> points_m) override {
+    points_.insert(points_.end(), points_m.begin(), points_m.end());
+  }
+  [[nodiscard]] const std::vector<Eigen::Vector3f>& points() const noexcept { return points_; }
+
+ private:
+  std::vector<Eigen::Vector3f> points_;
 };
 
 // The mapper's configuration for `robot` (hal::sim::mapper_config_for) with the [planes]
@@ -46,7 +62,7 @@ class MappingSession {
   void pump();
   // No more input: the rest is processed, the planes finalized and the outputs closed. The
   // plane list's "seconds" is the wall time from start() to here. With the local frame's
-  // place on Earth, the footprints are written in WGS-84 too.
+  // place on Earth, the footprints are written in WGS-84 too; with options.cloud, cloud.ply.
   [[nodiscard]] std::string finish(const std::optional<hal::GeodeticPoint>& origin);
   // One line of counters for stderr; data_s: the span of the data mapped.
   void report(std::ostream& err, double data_s) const;
@@ -56,6 +72,7 @@ class MappingSession {
   pipeline::Mapper mapper_;
   MapOutputs outputs_;
   std::vector<localize::Pose3> poses_;  // scratch for the localizer's poses
+  std::optional<CloudRecorder> cloud_;  // options.cloud
   std::chrono::steady_clock::time_point started_;
   double wall_s_ = 0.0;  // from start() to finish()
 };

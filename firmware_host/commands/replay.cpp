@@ -346,7 +346,8 @@ Command add_replay_command(CLI::App& app) {
   command->add_option("--out", options->mapping.out,
                       "the folder to write into (default: only trajectory.csv, to stdout)");
   command->add_option("--config", options->mapping.config,
-                      "a TOML file whose [planes] table sets the detector (config/planes.toml)");
+                      "a TOML file: [planes] the detector, [buildings] the fitter, [window] and "
+                      "[projection] the map (config/README.md)");
   command->add_option("--udp", options->mapping.udp,
                       "also send each binary plane-stream record to HOST:PORT");
   command
@@ -354,6 +355,8 @@ Command add_replay_command(CLI::App& app) {
                    "the memory budget the configured capacities must fit in")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  command->add_flag("--cloud", options->mapping.cloud,
+                    "also write cloud.ply, every projected point");
   command->add_flag("--trajectory-only", options->mapping.trajectory_only,
                     "localize only: write trajectory.csv, read no laser log");
   command->add_option("--origin", options->origin,

@@ -10,7 +10,6 @@
 #include <string>
 #include <vector>
 
-#include "blockmap/hal/cloud/point_cloud_file.hpp"
 #include "blockmap/hal/config/config_error.hpp"
 #include "blockmap/hal/sim/simulated_robot.hpp"
 #include "blockmap/hal/sim/world.hpp"
@@ -29,19 +28,6 @@ struct RunOptions {
   double duration_s = 0.0;
   std::string poses = "filter";
   int laps = 1;
-  bool cloud = false;
-};
-
-// Every projected point, for cloud.ply.
-class CloudRecorder final : public pipeline::PointSink {
- public:
-  void on_points(std::span<const Eigen::Vector3f> points_m) override {
-    points_.insert(points_.end(), points_m.begin(), points_m.end());
-  }
-  [[nodiscard]] const std::vector<Eigen::Vector3f>& points() const noexcept { return points_; }
-
- private:
-  std::vector<Eigen::Vector3f> points_;
 };
 
 int run(const RunOptions& options, std::ostream& err) {
@@ -82,10 +68,6 @@ int run(const RunOptions& options, std::ostream& err) {
     err << "blockmap: run: " << problem << '\n';
     return kExitUsage;
   }
-  CloudRecorder cloud;
-  if (options.cloud) {
-    session->mapper().set_point_sink(&cloud);
-  }
   bool more = true;
   while (more) {
     more = simulated->advance();
@@ -96,9 +78,6 @@ int run(const RunOptions& options, std::ostream& err) {
       !problem.empty()) {
     err << "blockmap: run: " << problem << '\n';
     return kExitFailure;
-  }
-  if (options.cloud) {
-    hal::cloud::write_ply(std::filesystem::path(options.mapping.out) / "cloud.ply", cloud.points());
   }
   session->report(err, simulated->simulation().elapsed_s());
   err << "run: open " << (std::filesystem::path(options.mapping.out) / "map.wrl").string()
@@ -117,7 +96,8 @@ Command add_run_command(CLI::App& app) {
   auto options = std::make_shared<RunOptions>();
   options->mapping.out = "out/run";
   command->add_option("--config", options->mapping.config,
-                      "a TOML file whose [planes] table sets the detector (config/planes.toml)");
+                      "a TOML file: [planes] the detector, [buildings] the fitter, [window] and "
+                      "[projection] the map (config/README.md)");
   command->add_option("--out", options->mapping.out, "the folder to write into")
       ->capture_default_str();
   command->add_option("--world", options->world, "the simulated world (built-in name or .toml)")
@@ -142,7 +122,8 @@ Command add_run_command(CLI::App& app) {
                    "the memory budget the configured capacities must fit in")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
-  command->add_flag("--cloud", options->cloud, "also write cloud.ply, every projected point");
+  command->add_flag("--cloud", options->mapping.cloud,
+                    "also write cloud.ply, every projected point");
   command->add_option("--laps", options->laps, "drive a loop path this many times")
       ->check(CLI::Range(1, 1000))
       ->capture_default_str();

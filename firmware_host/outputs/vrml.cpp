@@ -1,9 +1,13 @@
 #include "outputs/vrml.hpp"
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <ostream>
 #include <string>
+
+#include <Eigen/Geometry>
 
 namespace blockmap::cli {
 namespace {
@@ -65,6 +69,63 @@ bool drawn_by_a_building(std::uint32_t plane_id, std::span<const buildings::Buil
   return false;
 }
 
+// The map's extent in the local frame: what the viewpoints frame.
+Eigen::AlignedBox3d map_bounds(std::span<const msg::PlanePatch> planes,
+                               std::span<const localize::Pose3> path,
+                               std::span<const buildings::Building> buildings) {
+  Eigen::AlignedBox3d bounds;
+  for (const msg::PlanePatch& plane : planes) {
+    for (std::size_t i = 0; i < plane.polygon_size; ++i) {
+      bounds.extend(plane.polygon_m[i]);
+    }
+  }
+  for (const localize::Pose3& pose : path) {
+    bounds.extend(Eigen::Vector3d(pose.x_m, pose.y_m, pose.z_m));
+  }
+  for (const buildings::Building& building : buildings) {
+    for (std::size_t w = 0; w < building.wall_count; ++w) {
+      const buildings::BuildingWall& wall = building.walls[w];
+      bounds.extend(Eigen::Vector3d(wall.p0_m.x(), wall.p0_m.y(), wall.z0_m));
+      bounds.extend(Eigen::Vector3d(wall.p1_m.x(), wall.p1_m.y(), wall.z1_m));
+    }
+  }
+  if (bounds.isEmpty()) {
+    bounds.extend(Eigen::Vector3d::Zero());
+  }
+  return bounds;
+}
+
+// Two named viewpoints that frame the whole map (a viewer's default camera sits at the origin,
+// inside the block): "overview", looking north and 50 deg down, the view of the paper's
+// figures; "top", straight down with north up, as the SVG pictures. They are written in
+// VRML's own frame (y up, north is -z), outside the turn of the map: a viewpoint's default
+// direction (-z) is then north, and a turn about x by -angle tilts it down.
+void write_viewpoints(std::ostream& out, const Eigen::AlignedBox3d& bounds) {
+  constexpr double kFieldOfViewRad = 0.785398;
+  constexpr double kHalfPi = 1.5707963;
+  constexpr double kOverviewDownRad = 0.872665;  // 50 deg below the horizon
+  const Eigen::Vector3d centre = bounds.center();
+  const Eigen::Vector3d size = bounds.sizes();
+  // The field of view spans the window's shorter side, its height in a landscape window
+  // (4:3 assumed): the map's east-west extent may take 4/3 of it.
+  constexpr double kAspect = 4.0 / 3.0;
+  const double radius_m = std::max(2.0, 0.5 * std::max(size.x() / kAspect, size.y()));
+  const double distance_m = radius_m / std::tan(0.5 * kFieldOfViewRad);
+  const auto write = [&](const char* name, double down_rad, double distance) {
+    // ENU (e, n, u) is VRML (e, u, -n); the camera looks at the centre from `distance` back.
+    const std::string position = point_text(centre.x(), centre.z() + distance * std::sin(down_rad),
+                                            -centre.y() + distance * std::cos(down_rad));
+    char text[256];
+    std::snprintf(text, sizeof text,
+                  "Viewpoint { description \"%s\" fieldOfView %.6f position %s "
+                  "orientation 1 0 0 %.6f }\n",
+                  name, kFieldOfViewRad, position.c_str(), -down_rad);
+    out << text;
+  };
+  write("overview", kOverviewDownRad, distance_m);
+  write("top", kHalfPi, distance_m + 0.5 * size.z());
+}
+
 }  // namespace
 
 void write_vrml(std::ostream& out, std::span<const msg::PlanePatch> planes,
@@ -74,10 +135,13 @@ void write_vrml(std::ostream& out, std::span<const msg::PlanePatch> planes,
          "# blockmap: the map's planes (walls grey, roofs red, ground green, other blue) and the\n"
          "# robot's path (yellow), in the local ENU frame, metres; +z is up. Building walls:\n"
          "# seen dark, virtual (estimated, never seen) light.\n"
-         "WorldInfo { title \"blockmap map\" }\n"
-         "NavigationInfo { type [\"EXAMINE\", \"ANY\"] }\n"
-         // VRML's y is up: turn the ENU frame so that z points up in the viewer.
-         "Transform {\n  rotation 1 0 0 -1.5707963\n  children [\n";
+         "WorldInfo { title \"blockmap map\" }\n";
+  // The viewpoints before the NavigationInfo: view3dscene (4.2) starts from "view all" instead
+  // of the first viewpoint when a NavigationInfo comes first.
+  write_viewpoints(out, map_bounds(planes, path, buildings));
+  out << "NavigationInfo { type [\"EXAMINE\", \"ANY\"] }\n";
+  // VRML's y is up: turn the ENU frame so that z points up in the viewer.
+  out << "Transform {\n  rotation 1 0 0 -1.5707963\n  children [\n";
   for (const msg::PlanePatch& plane : planes) {
     if (plane.polygon_size < 3 ||
         (plane.kind == msg::PlaneKind::kWall && drawn_by_a_building(plane.id, buildings))) {

@@ -416,6 +416,12 @@ BuildingFitter::Box BuildingFitter::bounding_box() const noexcept {
         wall_level[1] = piece.level;
       }
     }
+    // One wall cannot be both sides (a short wall across it would make the box flat): it is
+    // the side it is nearer to.
+    if (wall_level[0] == wall_level[1]) {
+      const bool nearer_lo = wall_level[0] - box.lo[k] <= box.hi[k] - wall_level[1];
+      wall_level[nearer_lo ? 1 : 0] = kNaN;
+    }
     box.lo[k] = std::isnan(wall_level[0]) ? box.lo[k] : wall_level[0];
     box.hi[k] = std::isnan(wall_level[1]) ? box.hi[k] : wall_level[1];
   }
@@ -799,8 +805,13 @@ bool BuildingFitter::fit_group(std::span<const std::uint32_t> members,
     return false;
   }
 
-  // Candidate models, scored; the first of the lowest cost wins (rect before L before T).
+  // Candidate models, scored; the first of the lowest cost wins (rect before L before T). A
+  // box thinner than a wall is a fence's corner or a kerb, not a building.
   const Box box = bounding_box();
+  if (box.hi[0] - box.lo[0] < config_.min_wall_length_m ||
+      box.hi[1] - box.lo[1] < config_.min_wall_length_m) {
+    return false;
+  }
   propose_models(box);
   std::size_t best = 0;
   ModelScore best_score = score(models_[0]);

@@ -169,6 +169,23 @@ TEST_F(BuildingFitterTest, BuildingsApartAreApartAndAWallAloneIsNone) {
   EXPECT_NE(buildings[1].shape, BuildingShape::kUnknown);
 }
 
+TEST_F(BuildingFitterTest, AShortWallAcrossAWallMakesNoFlatBuilding) {
+  // The real UAL loop made this: a wall and a 2.1 m piece crossing it near one end. Both box
+  // sides across the short piece were within the tolerance of the one wall, and snapping both
+  // to it drew a footprint of no width (GDAL: "too few points"). One wall is one side; a
+  // footprint thinner than a wall is no building.
+  std::vector<msg::PlanePatch> planes;
+  planes.push_back(vertical_plane({0.0, 0.0}, {0.0, 12.0}, 0.0, 6.0, 1));
+  planes.push_back(vertical_plane({-1.2, 11.0}, {0.9, 11.0}, 0.0, 6.0, 2));
+  EXPECT_TRUE(fit(planes).empty());
+  // The same with the crossing piece long enough to be a side: a building with width.
+  planes[1] = vertical_plane({-1.2, 11.0}, {4.0, 11.0}, 0.0, 6.0, 2);
+  const auto buildings = fit(planes);
+  ASSERT_EQ(buildings.size(), 1u);
+  ASSERT_EQ(buildings[0].footprint_size, 4u);
+  EXPECT_GT(testing::polygon_area(footprint(buildings[0])), 10.0);
+}
+
 TEST_F(BuildingFitterTest, ACrossShapedBuildingIsUnknownRatherThanInvented) {
   // A plus sign: no rectangle, L or T explains most of its walls.
   const std::vector<Vector2d> plan{{-3, -10}, {3, -10}, {3, -3}, {10, -3}, {10, 3},   {3, 3},

@@ -170,12 +170,16 @@ class ReplayMapping : public ::testing::Test {
 TEST_F(ReplayMapping, MapsThePlanesWhenTheLogsHaveLasers) {
   const fs::path out = scratch("replay_planes");
   const Result result =
-      run_cli({"replay", folder_.string(), "--out", out.string(), "--particles", "500"});
+      run_cli({"replay", folder_.string(), "--out", out.string(), "--particles", "500", "--cloud"});
   ASSERT_EQ(result.status, kExitOk) << result.err;
   EXPECT_NE(result.err.find("scans projected"), std::string::npos) << result.err;
   const nlohmann::json list = nlohmann::json::parse(read_file(out / "planes.json"));
   EXPECT_FALSE(list["planes"].empty());
   EXPECT_GT(list["points"].get<double>(), 50000.0);
+  // --cloud: every projected point, as many as the plane list counts.
+  const std::string cloud = read_file(out / "cloud.ply");
+  const std::string vertices = "element vertex " + std::to_string(list["points"].get<long>());
+  EXPECT_NE(cloud.find(vertices), std::string::npos) << cloud.substr(0, 200);
   for (const char* name : {"planes.jsonl", "planes.bin", "map.wrl", "trajectory.csv",
                            "buildings.json", "buildings.jsonl", "footprints.geojson"}) {
     EXPECT_TRUE(fs::exists(out / name)) << name;

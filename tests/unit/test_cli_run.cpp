@@ -1,13 +1,17 @@
 // `blockmap run`: the onboard mapper on the built-in simulated city block writes what
-// ARCHITECTURE.md 4.4 lists, reports its memory against the budget first, and refuses bad
-// options in one line.
+// ARCHITECTURE.md 4.4 lists, reports its memory against the budget first, takes its window and
+// ranges from --config, and refuses bad options and configs in one line.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "cli.hpp"
 #include "cli_runner.hpp"
@@ -80,6 +84,41 @@ TEST(RunCommand, BadOptionsGetOneClearLine) {
   result = run_cli({"run", "--world", "atlantis", "--out", out.string()});
   EXPECT_NE(result.status, kExitOk);
   EXPECT_NE(result.err.find("atlantis"), std::string::npos) << result.err;
+  fs::remove_all(out);
+}
+
+TEST(RunCommand, TheConfigSetsTheWindowAndEveryMistakeNamesItsKey) {
+  const fs::path out = scratch("window");
+  fs::create_directories(out);
+  const auto config_with = [&](const std::string& name, const std::string& text) {
+    const fs::path path = out / name;
+    std::ofstream(path) << text;
+    return path.string();
+  };
+  const std::string wide =
+      config_with("wide.toml",
+                  "[window]\ntiles_across = 9\nmax_samples = 40960\n[projection]\n"
+                  "max_range_m = 50.0\n");
+  testing::CliResult result =
+      run_cli({"run", "--config", wide, "--duration-s", "2", "--out", (out / "run").string()});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  EXPECT_NE(result.err.find("samples of 40960"), std::string::npos) << result.err;
+
+  const std::vector<std::pair<std::string, std::string>> mistakes = {
+      {"[window]\ntiles_across = 8\n", "window.tiles_across: must be odd"},
+      {"[window]\ntile_size_ft = 8\n", "window.tile_size_ft: unknown key"},
+      {"[window]\ntile_size_m = 7.0\n", "tile_size_m must be a whole number of 4-voxel blocks"},
+      {"[projection]\nmax_range_m = -1.0\n", "projection.max_range_m: must be > 0"},
+      {"[projection]\nmin_range_m = 5.0\nmax_range_m = 4.0\n",
+       "projection.max_range_m: must be more than min_range_m"},
+  };
+  for (const auto& [text, expected] : mistakes) {
+    result = run_cli({"run", "--config", config_with("bad.toml", text), "--duration-s", "1",
+                      "--out", (out / "bad").string()});
+    EXPECT_EQ(result.status, kExitUsage) << text;
+    EXPECT_NE(result.err.find(expected), std::string::npos) << result.err;
+    EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << result.err;
+  }
   fs::remove_all(out);
 }
 

@@ -1,0 +1,49 @@
+#include "blockmap/hal/config/window_config.hpp"
+
+#include "toml_reader.hpp"
+
+namespace blockmap::hal::config {
+
+pipeline::MapperConfig parse_window_config(std::string_view text, std::string_view source,
+                                           const pipeline::MapperConfig& base) {
+  const toml::table document = parse_document(text, source);
+  TableReader root(document, std::string(source), "");
+  pipeline::MapperConfig c = base;
+  if (auto table = root.table("window")) {
+    TableReader& t = *table;
+    c.window.tile_size_m =
+        t.positive("tile_size_m", t.number_or("tile_size_m", c.window.tile_size_m));
+    const std::int64_t tiles = t.integer_or("tiles_across", c.window.tiles_across);
+    if (tiles < 3 || tiles > 255 || tiles % 2 == 0) {
+      t.fail("tiles_across", "must be odd, from 3 to 255 (the robot's tile is the middle one)");
+    }
+    c.window.tiles_across = static_cast<std::uint32_t>(tiles);
+    c.window.max_samples = t.capacity_or("max_samples", c.window.max_samples);
+    t.finish();
+    // The tile must hold whole 4-voxel blocks of the detector's samples ([planes] sample_size_m).
+    map::VoxelWindowConfig window = c.window;
+    window.voxel_size_m = c.planes.sample_size_m;
+    if (const std::string problem = map::validate(window); !problem.empty()) {
+      throw ConfigError(std::string(source) + ": " + problem);
+    }
+  }
+  if (auto table = root.table("projection")) {
+    TableReader& t = *table;
+    c.projection.min_range_m =
+        t.non_negative("min_range_m", t.number_or("min_range_m", c.projection.min_range_m));
+    c.projection.max_range_m =
+        t.positive("max_range_m", t.number_or("max_range_m", c.projection.max_range_m));
+    if (!(c.projection.max_range_m > c.projection.min_range_m)) {
+      t.fail("max_range_m", "must be more than min_range_m");
+    }
+    t.finish();
+  }
+  return c;
+}
+
+pipeline::MapperConfig load_window_config(const std::filesystem::path& path,
+                                          const pipeline::MapperConfig& base) {
+  return parse_window_config(read_config_file(path), path.string(), base);
+}
+
+}  // namespace blockmap::hal::config
