@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <numeric>
 
 #include "blockmap/planes/polygon.hpp"
 
@@ -180,19 +181,60 @@ void BuildingFitter::init(Arena& arena, const BuildingsConfig& config) {
   pieces_ = arena.allocate_array<Piece>(config.max_walls, "buildings.fitter");
   roofs_ = arena.allocate_array<Roof>(config.max_walls, "buildings.fitter");
   buildings_ = arena.allocate_array<Building>(config.max_buildings, "buildings.fitter");
+  for (PastSet& set : past_sets_) {
+    init_past_set(arena, set);
+  }
+  past_ = 0;
+  const std::size_t remembered = 2 * config.max_buildings;
+  past_taken_ = arena.allocate_array<std::uint8_t>(remembered, "buildings.fitter");
+  past_votes_ = arena.allocate_array<std::uint32_t>(remembered, "buildings.fitter");
+  past_remap_ = arena.allocate_array<std::uint32_t>(remembered, "buildings.fitter");
+  next_id_ = 1;
+}
+
+void BuildingFitter::init_past_set(Arena& arena, PastSet& set) const {
+  const std::size_t remembered = 2 * config_.max_buildings;
+  set.ids = arena.allocate_array<std::uint32_t>(remembered, "buildings.fitter");
+  set.extents = arena.allocate_array<Extent>(remembered, "buildings.fitter");
+  set.absent_fits = arena.allocate_array<std::uint16_t>(remembered, "buildings.fitter");
+  set.planes = arena.allocate_array<PastPlane>(remembered * kMaxBuildingWalls, "buildings.fitter");
+  set.count = 0;
+  set.plane_count = 0;
+}
+
+namespace {
+
+std::size_t padded(std::size_t bytes) noexcept {
+  return bytes + 64;
+}
+
+}  // namespace
+
+std::size_t BuildingFitter::past_set_bytes(const BuildingsConfig& config) noexcept {
+  const std::size_t remembered = 2 * config.max_buildings;
+  return padded(remembered * sizeof(std::uint32_t)) + padded(remembered * sizeof(Extent)) +
+         padded(remembered * sizeof(std::uint16_t)) +
+         padded(remembered * kMaxBuildingWalls * sizeof(PastPlane));
 }
 
 std::size_t BuildingFitter::arena_bytes(const BuildingsConfig& config) noexcept {
-  const auto padded = [](std::size_t bytes) { return bytes + 64; };
+  const std::size_t remembered = 2 * config.max_buildings;
   return padded(config.max_walls * sizeof(WallSegment)) +
          2 * padded(config.max_walls * sizeof(std::uint32_t)) +
          padded(config.max_walls * sizeof(Piece)) + padded(config.max_walls * sizeof(Roof)) +
-         padded(config.max_buildings * sizeof(Building));
+         padded(config.max_buildings * sizeof(Building)) + 2 * past_set_bytes(config) +
+         padded(remembered) + 2 * padded(remembered * sizeof(std::uint32_t));
 }
 
 std::size_t BuildingFitter::memory_bytes() const noexcept {
   return sizeof(*this) + segments_.size_bytes() + parent_.size_bytes() + order_.size_bytes() +
-         pieces_.size_bytes() + roofs_.size_bytes() + buildings_.size_bytes();
+         pieces_.size_bytes() + roofs_.size_bytes() + buildings_.size_bytes() +
+         past_taken_.size_bytes() + past_votes_.size_bytes() + past_remap_.size_bytes() +
+         std::accumulate(past_sets_.begin(), past_sets_.end(), std::size_t{0},
+                         [](std::size_t sum, const PastSet& set) {
+                           return sum + set.ids.size_bytes() + set.extents.size_bytes() +
+                                  set.absent_fits.size_bytes() + set.planes.size_bytes();
+                         });
 }
 
 std::span<const Building> BuildingFitter::fit(std::span<const msg::PlanePatch> planes) noexcept {
@@ -252,12 +294,139 @@ std::span<const Building> BuildingFitter::finish() noexcept {
       Building& building = buildings_[building_count_];
       building = Building{};
       if (fit_group(order_.subspan(first, last - first), building)) {
-        building.id = static_cast<std::uint32_t>(++building_count_);
+        ++building_count_;
       }
     }
     first = last;
   }
+  // 4. Each building keeps its identity from the last fit.
+  assign_ids();
+  remember_buildings();
   return buildings_.first(building_count_);
+}
+
+BuildingFitter::Extent BuildingFitter::extent_of(const Building& building) noexcept {
+  Extent extent{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+                -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
+  const auto grow = [&](const Eigen::Vector2d& p) {
+    extent.x0 = std::min(extent.x0, p.x());
+    extent.y0 = std::min(extent.y0, p.y());
+    extent.x1 = std::max(extent.x1, p.x());
+    extent.y1 = std::max(extent.y1, p.y());
+  };
+  for (std::size_t k = 0; k < building.footprint_size; ++k) {
+    grow(building.footprint_m[k]);
+  }
+  for (std::size_t w = 0; w < building.wall_count; ++w) {
+    grow(building.walls[w].p0_m);
+    grow(building.walls[w].p1_m);
+  }
+  return extent;
+}
+
+std::size_t BuildingFitter::past_match(const Building& building) noexcept {
+  const PastSet& past = past_sets_[past_];
+  const std::span<const PastPlane> planes = past.planes.first(past.plane_count);
+  std::fill_n(past_votes_.begin(), past.count, 0U);
+  for (std::size_t w = 0; w < building.wall_count; ++w) {
+    const std::uint32_t plane_id = building.walls[w].plane_id;
+    if (building.walls[w].is_virtual || plane_id == 0) {
+      continue;
+    }
+    auto it = std::lower_bound(
+        planes.begin(), planes.end(), plane_id,
+        [](const PastPlane& known, std::uint32_t id) { return known.plane_id < id; });
+    for (; it != planes.end() && it->plane_id == plane_id; ++it) {
+      ++past_votes_[it->past];
+    }
+  }
+  std::size_t best = past.count;
+  std::uint32_t best_votes = 0;
+  for (std::size_t p = 0; p < past.count; ++p) {
+    if (past_taken_[p] == 0 && past_votes_[p] > best_votes) {
+      best = p;
+      best_votes = past_votes_[p];
+    }
+  }
+  if (best < past.count) {
+    return best;
+  }
+  // No wall plane in common (the registry replaced them): the one it overlaps most, by at
+  // least half of the smaller extent.
+  const Extent e = extent_of(building);
+  const auto area = [](const Extent& x) {
+    return std::max(0.0, x.x1 - x.x0) * std::max(0.0, x.y1 - x.y0);
+  };
+  double best_share = 0.5;
+  for (std::size_t p = 0; p < past.count; ++p) {
+    const Extent& q = past.extents[p];
+    const Extent overlap{std::max(e.x0, q.x0), std::max(e.y0, q.y0), std::min(e.x1, q.x1),
+                         std::min(e.y1, q.y1)};
+    const double smaller = std::min(area(e), area(q));
+    const double share = smaller > 0.0 ? area(overlap) / smaller : 0.0;
+    if (past_taken_[p] == 0 && share >= best_share) {
+      best = p;
+      best_share = share;
+    }
+  }
+  return best;
+}
+
+void BuildingFitter::assign_ids() noexcept {
+  const PastSet& past = past_sets_[past_];
+  std::fill_n(past_taken_.begin(), past.count, std::uint8_t{0});
+  for (Building& building : buildings_.first(building_count_)) {
+    const std::size_t match = past_match(building);
+    if (match < past.count) {
+      building.id = past.ids[match];
+      past_taken_[match] = 1;
+    } else {
+      building.id = next_id_++;
+    }
+  }
+}
+
+void BuildingFitter::remember_buildings() noexcept {
+  constexpr std::uint32_t kForgotten = std::numeric_limits<std::uint32_t>::max();
+  const PastSet& old = past_sets_[past_];
+  PastSet& next = past_sets_[1 - past_];
+  next.count = 0;
+  next.plane_count = 0;
+  // This fit's buildings first,
+  for (const Building& building : buildings_.first(building_count_)) {
+    const auto index = static_cast<std::uint32_t>(next.count++);
+    next.ids[index] = building.id;
+    next.extents[index] = extent_of(building);
+    next.absent_fits[index] = 0;
+    for (std::size_t w = 0; w < building.wall_count; ++w) {
+      if (!building.walls[w].is_virtual && building.walls[w].plane_id != 0) {
+        next.planes[next.plane_count++] = {building.walls[w].plane_id, index};
+      }
+    }
+  }
+  // then those absent from it, for kRememberAbsentFits fits, while there is room.
+  for (std::size_t p = 0; p < old.count; ++p) {
+    past_remap_[p] = kForgotten;
+    if (past_taken_[p] == 0 && old.absent_fits[p] < kRememberAbsentFits &&
+        next.count < next.ids.size()) {
+      const auto index = static_cast<std::uint32_t>(next.count++);
+      next.ids[index] = old.ids[p];
+      next.extents[index] = old.extents[p];
+      next.absent_fits[index] = static_cast<std::uint16_t>(old.absent_fits[p] + 1);
+      past_remap_[p] = index;
+    }
+  }
+  for (const PastPlane& plane : old.planes.first(old.plane_count)) {
+    if (past_remap_[plane.past] != kForgotten && next.plane_count < next.planes.size()) {
+      next.planes[next.plane_count++] = {plane.plane_id, past_remap_[plane.past]};
+    }
+  }
+  std::sort(next.planes.begin(),
+            next.planes.begin() + static_cast<std::ptrdiff_t>(next.plane_count),
+            [](const PastPlane& a, const PastPlane& b) {
+              return a.plane_id < b.plane_id || (a.plane_id == b.plane_id && a.past < b.past);
+            });
+  past_ = 1 - past_;
 }
 
 std::uint32_t BuildingFitter::find_root(std::uint32_t i) noexcept {

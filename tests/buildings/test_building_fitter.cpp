@@ -169,6 +169,52 @@ TEST_F(BuildingFitterTest, BuildingsApartAreApartAndAWallAloneIsNone) {
   EXPECT_NE(buildings[1].shape, BuildingShape::kUnknown);
 }
 
+TEST_F(BuildingFitterTest, ABuildingKeepsItsIdFromFitToFit) {
+  // Fit 1: a rectangle seen from two sides (ids 1-2) and an L seen whole (ids 11-16).
+  std::vector<msg::PlanePatch> rect = seen_walls(kRectPlan, {0, 1});
+  std::vector<msg::PlanePatch> l_walls = seen_walls(placed(kLPlan, 0.0, {60.0, 0.0}), {0, 1, 2});
+  for (msg::PlanePatch& plane : l_walls) {
+    plane.id += 10;
+  }
+  std::vector<msg::PlanePatch> planes = rect;
+  planes.insert(planes.end(), l_walls.begin(), l_walls.end());
+  auto buildings = fit(planes);
+  ASSERT_EQ(buildings.size(), 2u);
+  EXPECT_EQ(buildings[0].id, 1u);
+  EXPECT_EQ(buildings[1].id, 2u);
+
+  // Fit 2: a new building's walls come first in the list, and the rectangle gains a wall: the
+  // order of the buildings changes, their ids do not, and the new one gets the next id.
+  planes = seen_walls(placed(kRectPlan, 0.0, {0.0, 80.0}), {0, 1});
+  for (msg::PlanePatch& plane : planes) {
+    plane.id += 20;
+  }
+  std::vector<msg::PlanePatch> more_rect = seen_walls(kRectPlan, {0, 1, 2});
+  planes.insert(planes.end(), more_rect.begin(), more_rect.end());
+  planes.insert(planes.end(), l_walls.begin(), l_walls.end());
+  buildings = fit(planes);
+  ASSERT_EQ(buildings.size(), 3u);
+  EXPECT_EQ(buildings[0].id, 3u);  // new
+  EXPECT_EQ(buildings[1].id, 1u);  // the rectangle
+  EXPECT_EQ(buildings[2].id, 2u);  // the L
+
+  // Fit 3: the L's walls under new plane ids (a registry that replaced them) keep the L's id
+  // through its place; the rectangle gone, its id is not given to anyone else.
+  for (msg::PlanePatch& plane : l_walls) {
+    plane.id += 100;
+  }
+  planes = l_walls;
+  std::vector<msg::PlanePatch> elsewhere = seen_walls(placed(kRectPlan, 0.0, {-80.0, 0.0}), {0, 1});
+  for (msg::PlanePatch& plane : elsewhere) {
+    plane.id += 40;
+  }
+  planes.insert(planes.end(), elsewhere.begin(), elsewhere.end());
+  buildings = fit(planes);
+  ASSERT_EQ(buildings.size(), 2u);
+  EXPECT_EQ(buildings[0].id, 2u);
+  EXPECT_EQ(buildings[1].id, 4u);
+}
+
 TEST_F(BuildingFitterTest, AShortWallAcrossAWallMakesNoFlatBuilding) {
   // The real UAL loop made this: a wall and a 2.1 m piece crossing it near one end. Both box
   // sides across the short piece were within the tolerance of the one wall, and snapping both

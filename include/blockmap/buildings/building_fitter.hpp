@@ -50,7 +50,14 @@ class BuildingFitter {
   void init(Arena& arena, const BuildingsConfig& config);
 
   // The buildings of these planes (walls make footprints, roofs give heights). The result
-  // stays valid until the next fit() or begin().
+  // stays valid until the next fit() or begin(). A building keeps its id from one fit to the
+  // next (the streaming mapper refits after every extraction, and a consumer of its updates
+  // follows buildings by id): it takes the id of the last fit's building with which it shares
+  // the most observed wall planes (the plane registry's ids, stable across updates), else of
+  // the one its extent overlaps most (half of the smaller one at least); a building matching
+  // none gets a new id. Ids are never reused. A building missing from a fit (its walls did not
+  // make a corner this time) is remembered for kRememberAbsentFits fits, so that it takes its
+  // id back when it returns. The first fit numbers its buildings 1, 2, ...
   std::span<const Building> fit(std::span<const msg::PlanePatch> planes) noexcept;
   // The same, one plane at a time (planes kept apart, as a plane registry keeps its live and
   // final planes): begin(), add() each, finish().
@@ -65,6 +72,7 @@ class BuildingFitter {
   [[nodiscard]] const Counters& counters() const noexcept { return counters_; }
   [[nodiscard]] std::size_t memory_bytes() const noexcept;
   [[nodiscard]] static std::size_t arena_bytes(const BuildingsConfig& config) noexcept;
+  [[nodiscard]] static std::size_t past_set_bytes(const BuildingsConfig& config) noexcept;
 
   // One footprint model in the building's own frame (u along its main axis, v across): a
   // rectilinear polygon, counter-clockwise.
@@ -121,6 +129,33 @@ class BuildingFitter {
   [[nodiscard]] ModelScore score(const Model& model) const noexcept;
   void emit_walls(const Model& model, double axis_rad, Building& building) const noexcept;
   void set_height(Building& building) const noexcept;
+  // Identity across fits (see fit()).
+  struct Extent {
+    double x0 = 0.0;
+    double y0 = 0.0;
+    double x1 = 0.0;
+    double y1 = 0.0;
+  };
+  struct PastPlane {
+    std::uint32_t plane_id = 0;
+    std::uint32_t past = 0;  // index into past_ids_ and past_extents_
+  };
+  // A minute of the mapper's refits (one a second).
+  static constexpr std::uint16_t kRememberAbsentFits = 60;
+  // The remembered buildings: two sets of arrays, the last fit's and the one being written.
+  struct PastSet {
+    std::span<std::uint32_t> ids;
+    std::span<Extent> extents;
+    std::span<std::uint16_t> absent_fits;  // fits since it was last seen
+    std::span<PastPlane> planes;           // observed wall planes, sorted by plane id
+    std::size_t count = 0;
+    std::size_t plane_count = 0;
+  };
+  void init_past_set(Arena& arena, PastSet& set) const;
+  [[nodiscard]] static Extent extent_of(const Building& building) noexcept;
+  [[nodiscard]] std::size_t past_match(const Building& building) noexcept;
+  void assign_ids() noexcept;
+  void remember_buildings() noexcept;
 
   BuildingsConfig config_;
   Counters counters_;
@@ -142,6 +177,13 @@ class BuildingFitter {
   std::size_t model_count_ = 0;
   std::span<Building> buildings_;
   std::size_t building_count_ = 0;
+  // The buildings of the last fits (twice max_buildings: this fit's and those absent from it).
+  std::array<PastSet, 2> past_sets_{};
+  std::size_t past_ = 0;  // past_sets_[past_] is the last fit's
+  std::span<std::uint8_t> past_taken_;
+  std::span<std::uint32_t> past_votes_;
+  std::span<std::uint32_t> past_remap_;
+  std::uint32_t next_id_ = 1;
 };
 
 }  // namespace blockmap::buildings
