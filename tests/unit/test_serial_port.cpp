@@ -15,7 +15,10 @@
 #include <string>
 #include <vector>
 
+#include "blockmap/core/spsc_queue.hpp"
+#include "blockmap/hal/devices/laser_scanners.hpp"
 #include "blockmap/hal/linux/serial_port.hpp"
+#include "blockmap/hal/protocol/sick_lms2xx.hpp"
 
 namespace blockmap::hal::linux_backend {
 namespace {
@@ -189,6 +192,53 @@ TEST(SerialPort, TheDeviceGoingAwayIsDeviceLostAndReopeningWorks) {
   ASSERT_EQ(port.open(tty->path(), 38400), "");
   tty->send({0x06});
   EXPECT_EQ(read_all(port, 1), std::vector<std::uint8_t>{0x06});
+}
+
+TEST(SerialPort, AnLms2xxScannerStartsAndStreamsThroughARealTerminal) {
+  // The device layer on a real tty, with the bytes an LMS291 sends: the scanner asks for
+  // continuous output, the "laser" (the test, at the master) acknowledges and streams.
+  namespace lms = protocol::sick_lms2xx;
+  PseudoTerminal tty;
+  SerialPort port;
+  ASSERT_EQ(port.open(tty.path(), 38400), "");
+  SpscQueue<msg::LaserScan, 8> queue;
+  devices::Lms2xxScanner scanner(port, queue, devices::Lms2xxScannerConfig{});
+  ASSERT_EQ(scanner.start(), IoStatus::kOk);
+  const std::vector<std::uint8_t> continuous_output = {0x02, 0x00, 0x02, 0x00,
+                                                       0x20, 0x24, 0x34, 0x08};
+  EXPECT_EQ(tty.receive(continuous_output.size()), continuous_output);
+
+  std::vector<std::uint8_t> answer = {lms::kAckByte};
+  std::array<std::uint8_t, 64> reply{};
+  const std::array<std::uint8_t, 1> accepted = {0x00};
+  std::size_t n = lms::encode_reply(reply, lms::command::kSwitchModeReply, accepted, 0x10);
+  answer.insert(answer.end(), reply.begin(), reply.begin() + static_cast<std::ptrdiff_t>(n));
+  std::vector<std::uint16_t> values(361);
+  std::vector<std::uint8_t> telegram(900);
+  for (std::uint16_t s = 0; s < 4; ++s) {  // 4 x 732 bytes: within the tty's 4 KiB buffer
+    for (std::size_t i = 0; i < values.size(); ++i) {
+      values[i] = static_cast<std::uint16_t>(1000U + s * 10U + i);
+    }
+    n = lms::encode_measured_values(telegram, values, lms::Units::kMm, 0x10);
+    answer.insert(answer.end(), telegram.begin(),
+                  telegram.begin() + static_cast<std::ptrdiff_t>(n));
+  }
+  tty.send(answer);
+  std::vector<msg::LaserScan> scans;
+  for (int polls = 0; scans.size() < 4 && polls < 200; ++polls) {
+    static_cast<void>(scanner.poll(10 * kMs));
+    for (msg::LaserScan scan; queue.try_pop(scan);) {
+      scans.push_back(scan);
+    }
+  }
+  EXPECT_EQ(scanner.mode_switches(), 1u);
+  ASSERT_EQ(scans.size(), 4u);
+  for (std::size_t s = 0; s < scans.size(); ++s) {
+    EXPECT_EQ(scans[s].beam_count, 361);
+    EXPECT_NEAR(scans[s].ranges_m[0], 1.0 + 0.01 * static_cast<double>(s), 1e-6);
+  }
+  EXPECT_EQ(scanner.decoder().drops().total(), 0u);
+  EXPECT_EQ(scanner.decoder().scans_decoded(), 4u);
 }
 
 }  // namespace
