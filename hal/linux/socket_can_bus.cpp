@@ -68,7 +68,7 @@ std::string SocketCanBus::open(const std::string& interface) {
            "; is the can-raw module loaded?)";
   }
   const auto fail = [&](const std::string& what) {
-    const std::string message = "CAN interface " + interface + ": " + what + reason(errno);
+    std::string message = "CAN interface " + interface + ": " + what + reason(errno);
     ::close(fd);
     return message;
   };

@@ -10,7 +10,10 @@
 #include <ctime>
 #include <string>
 
+#include "blockmap/core/spsc_queue.hpp"
+#include "blockmap/hal/devices/segway_base.hpp"
 #include "blockmap/hal/linux/socket_can_bus.hpp"
+#include "blockmap/hal/protocol/segway_rmp.hpp"
 
 namespace blockmap::hal::linux_backend {
 namespace {
@@ -109,6 +112,40 @@ TEST_F(SocketCanTest, FiltersPassOnlyTheRmpsIds) {
   EXPECT_EQ(got.id, 0x123u);
   const std::array<CanFilter, SocketCanBus::kMaxFilters + 1> too_many{};
   EXPECT_EQ(receiver_.set_filters(too_many), IoStatus::kInvalidArgument);
+}
+
+TEST_F(SocketCanTest, TheSegwayBaseDecodesItsStatusFramesFromTheKernel) {
+  // The device layer on SocketCAN, with the frames an RMP sends every 10 ms (and the UI's
+  // heartbeat, which the base's filters keep off the socket).
+  SpscQueue<msg::OdometrySample, 64> odometry;
+  SpscQueue<msg::ImuSample, 64> imu;
+  devices::SegwayBase base(receiver_, odometry, imu, devices::SegwayBaseConfig{});
+  ASSERT_EQ(base.install_filters(), IoStatus::kOk);
+  constexpr int kGroups = 20;
+  for (int group = 0; group < kGroups; ++group) {
+    protocol::segway_rmp::StatusCycle cycle;
+    cycle.odometry.fore_aft_distance_m = 0.01 * group;
+    cycle.odometry.servo_frame_count = static_cast<std::uint16_t>(group);
+    cycle.imu.pitch_rad = 0.05;
+    for (const CanFrame& frame :
+         protocol::segway_rmp::encode_status(cycle, protocol::segway_rmp::Config{}).frames) {
+      ASSERT_EQ(sender_.send(frame), IoStatus::kOk);
+    }
+    CanFrame heartbeat;
+    heartbeat.id = 0x688;
+    heartbeat.dlc = 8;
+    ASSERT_EQ(sender_.send(heartbeat), IoStatus::kOk);
+  }
+  for (int polls = 0; base.samples_published() < kGroups && polls < 200; ++polls) {
+    static_cast<void>(base.poll(10 * kMs));
+  }
+  ASSERT_EQ(base.samples_published(), static_cast<std::uint64_t>(kGroups));
+  msg::OdometrySample sample;
+  for (int group = 0; group < kGroups; ++group) {
+    ASSERT_TRUE(odometry.try_pop(sample));
+    EXPECT_NEAR(sample.fore_aft_distance_m, 0.01 * group, 1.0 / 33215.0);
+  }
+  EXPECT_EQ(base.decoder().drops().total(), 0u) << "no foreign frame reached the decoder";
 }
 
 TEST(SocketCan, AMissingInterfaceIsOneClearLine) {
