@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "blockmap/core/spsc_queue.hpp"
+#include "blockmap/hal/devices/gps_receiver.hpp"
 #include "blockmap/hal/devices/laser_scanners.hpp"
 #include "blockmap/hal/linux/serial_port.hpp"
 #include "blockmap/hal/protocol/sick_lms2xx.hpp"
@@ -239,6 +240,30 @@ TEST(SerialPort, AnLms2xxScannerStartsAndStreamsThroughARealTerminal) {
   }
   EXPECT_EQ(scanner.decoder().drops().total(), 0u);
   EXPECT_EQ(scanner.decoder().scans_decoded(), 4u);
+}
+
+TEST(SerialPort, AGpsReceiverPublishesFixesFromNmeaOnARealTerminal) {
+  // Two epochs of a receiver at 9600 baud, as it sends them (CR LF line ends: raw mode keeps
+  // them).
+  const std::string nmea =
+      "$GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*47\r\n"
+      "$GPRMC,123520,A,4807.038,N,01131.000,E,022.4,084.4,230394,003.1,W*60\r\n"
+      "$GPGGA,123520,4807.040,N,01131.002,E,1,08,0.9,545.6,M,46.9,M,,*42\r\n";
+  PseudoTerminal tty;
+  SerialPort port;
+  ASSERT_EQ(port.open(tty.path(), 9600), "");
+  SpscQueue<msg::GpsFix, 8> fixes;
+  devices::GpsReceiver receiver(port, fixes, devices::GpsReceiverConfig{});
+  tty.send(std::vector<std::uint8_t>(nmea.begin(), nmea.end()));
+  for (int polls = 0; receiver.fixes_published() < 2 && polls < 100; ++polls) {
+    static_cast<void>(receiver.poll(10 * kMs));
+  }
+  ASSERT_EQ(receiver.fixes_published(), 2u);
+  msg::GpsFix fix;
+  ASSERT_TRUE(fixes.try_pop(fix));
+  EXPECT_NEAR(fix.latitude_deg, 48.0 + 7.038 / 60.0, 1e-9);
+  EXPECT_NEAR(fix.longitude_deg, 11.0 + 31.0 / 60.0, 1e-9);
+  EXPECT_EQ(receiver.decoder().drops().total(), 0u);
 }
 
 }  // namespace
