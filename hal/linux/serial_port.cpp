@@ -9,8 +9,9 @@
 #include <array>
 #include <cerrno>
 #include <ctime>
-#include <system_error>
 #include <utility>
+
+#include "descriptor_wait.hpp"
 
 namespace blockmap::hal::linux_backend {
 namespace {
@@ -35,25 +36,6 @@ bool speed_of(std::uint32_t baud, speed_t& speed) noexcept {
     }
   }
   return false;
-}
-
-std::string reason(int error) {
-  return std::error_code(error, std::generic_category()).message();
-}
-
-TimestampNs monotonic_now_ns() noexcept {
-  timespec now{};
-  ::clock_gettime(CLOCK_MONOTONIC, &now);
-  return static_cast<TimestampNs>(now.tv_sec) * 1'000'000'000 + now.tv_nsec;
-}
-
-// poll() takes milliseconds: round up, so that a short timeout still waits.
-int poll_timeout_ms(TimestampNs timeout_ns) noexcept {
-  if (timeout_ns <= 0) {
-    return 0;
-  }
-  const TimestampNs ms = (timeout_ns + 999'999) / 1'000'000;
-  return ms > 1'000'000'000 ? 1'000'000'000 : static_cast<int>(ms);
 }
 
 // Errors that mean the device is gone rather than misused.
@@ -102,7 +84,7 @@ std::string SerialPort::open(const std::string& path, std::uint32_t baud) {
   }
   const int fd = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
   if (fd < 0) {
-    return "serial port " + path + ": " + reason(errno);
+    return "serial port " + path + ": " + error_text(errno);
   }
   if (!::isatty(fd)) {
     ::close(fd);
@@ -112,7 +94,7 @@ std::string SerialPort::open(const std::string& path, std::uint32_t baud) {
   if (::ioctl(fd, TIOCEXCL) != 0 || !configure_raw(fd, speed, error)) {
     error = error != 0 ? error : errno;
     ::close(fd);
-    return "serial port " + path + ": " + reason(error);
+    return "serial port " + path + ": " + error_text(error);
   }
   // What arrived before we were listening belongs to no telegram we can frame.
   ::tcflush(fd, TCIOFLUSH);
@@ -143,7 +125,7 @@ ReadResult SerialPort::do_read(std::span<std::uint8_t> buffer, TimestampNs timeo
   }
   const ssize_t n = ::read(fd_, buffer.data(), buffer.size());
   if (n > 0) {
-    return {IoStatus::kOk, static_cast<std::size_t>(n), monotonic_now_ns()};
+    return {IoStatus::kOk, static_cast<std::size_t>(n), clock_now_ns()};
   }
   if (n < 0 && (errno == EAGAIN || errno == EINTR)) {
     return {IoStatus::kWouldBlock, 0, 0};
@@ -160,7 +142,7 @@ WriteResult SerialPort::do_write(std::span<const std::uint8_t> bytes, TimestampN
   if (fd_ < 0) {
     return {IoStatus::kDeviceLost, 0};
   }
-  const TimestampNs deadline_ns = monotonic_now_ns() + timeout_ns;
+  const TimestampNs deadline_ns = clock_now_ns() + timeout_ns;
   std::size_t written = 0;
   while (written < bytes.size()) {
     const ssize_t n = ::write(fd_, bytes.data() + written, bytes.size() - written);
@@ -172,7 +154,7 @@ WriteResult SerialPort::do_write(std::span<const std::uint8_t> bytes, TimestampN
       return {device_gone(errno) ? IoStatus::kDeviceLost : IoStatus::kIoError, written};
     }
     // The kernel's buffer is full (the line drains at its baud rate): wait for room.
-    const TimestampNs left_ns = deadline_ns - monotonic_now_ns();
+    const TimestampNs left_ns = deadline_ns - clock_now_ns();
     if (left_ns <= 0) {
       break;
     }

@@ -14,28 +14,11 @@
 #include <cerrno>
 #include <cstring>
 #include <ctime>
-#include <system_error>
+
+#include "descriptor_wait.hpp"
 
 namespace blockmap::hal::linux_backend {
 namespace {
-
-std::string reason(int error) {
-  return std::error_code(error, std::generic_category()).message();
-}
-
-TimestampNs clock_ns(clockid_t clock) noexcept {
-  timespec now{};
-  ::clock_gettime(clock, &now);
-  return static_cast<TimestampNs>(now.tv_sec) * 1'000'000'000 + now.tv_nsec;
-}
-
-int poll_timeout_ms(TimestampNs timeout_ns) noexcept {
-  if (timeout_ns <= 0) {
-    return 0;
-  }
-  const TimestampNs ms = (timeout_ns + 999'999) / 1'000'000;
-  return ms > 1'000'000'000 ? 1'000'000'000 : static_cast<int>(ms);
-}
 
 bool interface_gone(int error) noexcept {
   return error == ENETDOWN || error == ENODEV || error == ENXIO || error == EBADF;
@@ -46,8 +29,8 @@ bool interface_gone(int error) noexcept {
 TimestampNs monotonic_stamp(const timespec& realtime) noexcept {
   const TimestampNs stamp_real =
       static_cast<TimestampNs>(realtime.tv_sec) * 1'000'000'000 + realtime.tv_nsec;
-  const TimestampNs now_mono = clock_ns(CLOCK_MONOTONIC);
-  const TimestampNs now_real = clock_ns(CLOCK_REALTIME);
+  const TimestampNs now_mono = clock_now_ns();
+  const TimestampNs now_real = clock_now_ns(CLOCK_REALTIME);
   return now_mono - (now_real - stamp_real);
 }
 
@@ -64,11 +47,11 @@ std::string SocketCanBus::open(const std::string& interface) {
   }
   const int fd = ::socket(PF_CAN, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, CAN_RAW);
   if (fd < 0) {
-    return "CAN interface " + interface + ": no CAN socket (" + reason(errno) +
+    return "CAN interface " + interface + ": no CAN socket (" + error_text(errno) +
            "; is the can-raw module loaded?)";
   }
   const auto fail = [&](const std::string& what) {
-    std::string message = "CAN interface " + interface + ": " + what + reason(errno);
+    std::string message = "CAN interface " + interface + ": " + what + error_text(errno);
     ::close(fd);
     return message;
   };
@@ -131,7 +114,7 @@ CanReceiveResult SocketCanBus::do_receive(CanFrame& frame, TimestampNs timeout_n
   if (static_cast<std::size_t>(n) < sizeof raw) {
     return {IoStatus::kBadData, 0};
   }
-  TimestampNs stamp_ns = clock_ns(CLOCK_MONOTONIC);
+  TimestampNs stamp_ns = clock_now_ns();
   for (cmsghdr* header = CMSG_FIRSTHDR(&message); header != nullptr;
        header = CMSG_NXTHDR(&message, header)) {
     if (header->cmsg_level == SOL_SOCKET && header->cmsg_type == SCM_TIMESTAMPNS) {

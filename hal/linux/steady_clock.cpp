@@ -1,15 +1,12 @@
 #include "blockmap/hal/linux/steady_clock.hpp"
 
-#include <ctime>
+#include "descriptor_wait.hpp"
 
 namespace blockmap::hal::linux_backend {
 
+// CLOCK_MONOTONIC cannot fail with a valid pointer; there is no error to report.
 TimestampNs SteadyClock::read_ns() const noexcept {
-  timespec now{};
-  // CLOCK_MONOTONIC cannot fail with a valid pointer; there is no error to report.
-  (void)clock_gettime(CLOCK_MONOTONIC, &now);
-  return static_cast<TimestampNs>(now.tv_sec) * kNanosecondsPerSecond +
-         static_cast<TimestampNs>(now.tv_nsec);
+  return clock_now_ns();
 }
 
 }  // namespace blockmap::hal::linux_backend
