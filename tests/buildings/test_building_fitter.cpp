@@ -6,6 +6,7 @@
 
 #include "blockmap/buildings/building_fitter.hpp"
 #include "blockmap/core/arena.hpp"
+#include "blockmap/planes/polygon.hpp"
 #include "footprint_score.hpp"
 #include "synthetic_walls.hpp"
 
@@ -229,7 +230,7 @@ TEST_F(BuildingFitterTest, AShortWallAcrossAWallMakesNoFlatBuilding) {
   const auto buildings = fit(planes);
   ASSERT_EQ(buildings.size(), 1u);
   ASSERT_EQ(buildings[0].footprint_size, 4u);
-  EXPECT_GT(testing::polygon_area(footprint(buildings[0])), 10.0);
+  EXPECT_GT(planes::polygon_area(footprint(buildings[0])), 10.0);
 }
 
 TEST_F(BuildingFitterTest, ACrossShapedBuildingIsUnknownRatherThanInvented) {

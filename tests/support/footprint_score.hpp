@@ -14,17 +14,6 @@
 
 namespace blockmap::testing {
 
-// The shoelace area of a simple polygon, positive when counter-clockwise.
-inline double polygon_area(std::span<const Eigen::Vector2d> polygon) {
-  double twice_area = 0.0;
-  for (std::size_t i = 0; i < polygon.size(); ++i) {
-    const Eigen::Vector2d& a = polygon[i];
-    const Eigen::Vector2d& b = polygon[(i + 1) % polygon.size()];
-    twice_area += a.x() * b.y() - b.x() * a.y();
-  }
-  return 0.5 * twice_area;
-}
-
 inline double footprint_iou(std::span<const Eigen::Vector2d> a, std::span<const Eigen::Vector2d> b,
                             double cell_m = 0.05) {
   if (a.size() < 3 || b.size() < 3) {
