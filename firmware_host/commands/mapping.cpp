@@ -104,19 +104,23 @@ void MappingSession::report(std::ostream& err, double data_s) const {
   const pipeline::MapperCounters& c = mapper_.counters();
   const map::VoxelWindowCounters& w = mapper_.window().counters();
   const map::PlaneRegistryCounters& r = mapper_.registry().counters();
-  char text[640];
+  char text[768];
   std::snprintf(
       text, sizeof text,
       "mapped %.1f s of data in %.2f s (%.0fx real time): %llu scans projected, %llu points "
-      "(%llu outside the window, %llu with no room); %llu extractions; planes: %llu added, %llu "
+      "(%llu outside the window, %llu with no room); %llu extractions (%llu on kept samples; "
+      "%llu of %llu sections as before); planes: %llu added, %llu "
       "changes, %llu final; window peak %zu samples of %zu; %llu updates, %llu bytes of binary "
       "stream -> %s\n",
       data_s, wall_s, wall_s > 0.0 ? data_s / wall_s : 0.0,
       static_cast<unsigned long long>(c.scans_projected), static_cast<unsigned long long>(c.points),
       static_cast<unsigned long long>(w.points_outside),
       static_cast<unsigned long long>(w.points_dropped_full),
-      static_cast<unsigned long long>(c.extractions), static_cast<unsigned long long>(r.added),
-      static_cast<unsigned long long>(r.changed),
+      static_cast<unsigned long long>(c.extractions),
+      static_cast<unsigned long long>(c.incremental_extractions),
+      static_cast<unsigned long long>(c.sections_replayed),
+      static_cast<unsigned long long>(c.sections_searched),
+      static_cast<unsigned long long>(r.added), static_cast<unsigned long long>(r.changed),
       static_cast<unsigned long long>(mapper_.final_planes().size()), w.peak_samples,
       mapper_.window().capacity(), static_cast<unsigned long long>(outputs_.updates()),
       static_cast<unsigned long long>(outputs_.binary_bytes()), outputs_.dir().c_str());

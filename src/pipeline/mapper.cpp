@@ -401,6 +401,8 @@ void Mapper::extract(TimestampNs stamp_ns) noexcept {
   const std::span<const msg::PlanePatch> planes = detector_.detect();
   counters_.peak_blocks = std::max(counters_.peak_blocks, detector_.voxels().block_count());
   counters_.scan_planes_rejected += detector_.stats().planes_excluded;
+  counters_.sections_searched += detector_.stats().sections_searched;
+  counters_.sections_replayed += detector_.stats().sections_replayed;
   registry_.update(planes, detector_.plane_moments());
   update_stamp_ns_ = stamp_ns;
   refit_buildings();

@@ -53,6 +53,9 @@ MeasuredGrid measured_orientation_grid(const PlanesConfig& config) {
 }
 
 constexpr double kDegToRad = std::numbers::pi / 180.0;
+// A sample's orientation cell before a section it votes in looks it up (most samples lie in
+// sections that are replayed, and never vote).
+constexpr std::uint32_t kAxisCellUnknown = std::numeric_limits<std::uint32_t>::max();
 // The inlier band: this many times the fit's RMS distance, grown in at most this many extra
 // refinement steps.
 constexpr double kBandPerRmse = 3.0;
@@ -83,6 +86,11 @@ void PlaneDetector::init(Arena& arena, const PlanesConfig& config) {
   accumulator_.init(arena, orientations_, half_range_m, config.d_bin_m,
                     config.max_samples_per_section * 32);
   merger_.init(arena, config);
+  caching_ = config.keep_shapes &&
+             SectionCache::supports(whole_ratio(config.section_size_m, config.section_stride_m));
+  if (caching_) {
+    cache_.init(arena, block_capacity(config), config.max_kept_sections, config.max_patches);
+  }
   block_free_points_ =
       arena.allocate_array<std::uint32_t>(block_capacity(config), "planes.detector");
   section_samples_ =
@@ -100,24 +108,35 @@ std::size_t PlaneDetector::arena_budget_bytes(const PlanesConfig& config) noexce
   const double d_bins = 2.0 * std::ceil(half_range / config.d_bin_m);
   const auto voxels = static_cast<double>(
       VoxelGrid::arena_bytes(config.max_samples, block_capacity(config)) +
-      (config.keep_shapes ? VoxelGrid::shape_cache_bytes(config.max_samples) : 0));
+      (config.keep_shapes ? VoxelGrid::shape_cache_bytes(config.max_samples, block_capacity(config))
+                          : 0));
   const auto sections = static_cast<double>(SectionGrid::arena_bytes(
       block_capacity(config), whole_ratio(config.section_size_m, config.section_stride_m)));
   const double accumulator =
       grid.rows * d_bins * sizeof(float) +
       static_cast<double>(config.max_samples_per_section) * 32 * sizeof(std::uint32_t);
   const auto merger = static_cast<double>(PlaneMerger::arena_bytes(config));
+  const bool caching = config.keep_shapes && SectionCache::supports(whole_ratio(
+                                                 config.section_size_m, config.section_stride_m));
+  const auto cache = static_cast<double>(
+      caching ? SectionCache::arena_bytes(block_capacity(config), config.max_kept_sections,
+                                          config.max_patches)
+              : 0);
   const double section = static_cast<double>(block_capacity(config)) * sizeof(std::uint32_t) +
                          static_cast<double>(config.max_samples_per_section) *
                              (2 * sizeof(std::uint32_t) + sizeof(Eigen::Vector3f)) +
                          static_cast<double>(config.max_planes_per_section) * sizeof(HoughPeak);
   // Alignment padding: a few dozen allocations of at most 64 bytes each.
-  return static_cast<std::size_t>(grid.bytes + voxels + sections + accumulator + merger + section) +
+  return static_cast<std::size_t>(grid.bytes + voxels + sections + accumulator + merger + cache +
+                                  section) +
          (std::size_t{1} << 16);
 }
 
 void PlaneDetector::clear() noexcept {
   voxels_.clear();
+  if (caching_) {
+    cache_.invalidate();  // block indices start over
+  }
   merger_.clear();
   stats_ = DetectionStats{};
 }
@@ -141,21 +160,24 @@ std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
   for (Voxel& voxel : voxels_.voxels()) {
     voxel.owner = -1;
     block_free_points_[voxel.block] += votes(voxel) ? voxel.point_count : 0;
-    if (voxel.shape == LocalShape::kPlanar || voxel.shape == LocalShape::kLinear) {
-      voxel.axis_cell = orientations_.cell_of(voxel.axis);
-    }
-    voxel.centroid_m = voxels_.centroid_m(voxel);
+    voxel.axis_cell = kAxisCellUnknown;  // looked up by the first section it votes in
     stats_.planar_samples += voxel.shape == LocalShape::kPlanar ? 1 : 0;
     stats_.linear_samples += voxel.shape == LocalShape::kLinear ? 1 : 0;
     stats_.scattered_samples += voxel.shape == LocalShape::kScattered ? 1 : 0;
   }
   stats_.samples = voxels_.size();
   merger_.clear();
+  if (caching_) {
+    cache_.begin(voxels_, exclusions_salt_);
+  }
   for (std::size_t section = 0; section < sections_.sections().size(); ++section) {
     detect_in_section(section);
   }
   stats_.sections = sections_.sections().size();
   stats_.section_planes = merger_.section_plane_count();
+  if (caching_) {
+    cache_.end(merger_.section_planes(), merger_.counters().section_planes_dropped_full == 0);
+  }
   const std::span<const msg::PlanePatch> planes = merger_.merge(sections_);
   stats_.planes = planes.size();
   stats_.planes_excluded = merger_.counters().planes_excluded;
@@ -199,27 +221,67 @@ void PlaneDetector::vote_sample(const Voxel& voxel, const Eigen::Vector3f& posit
   }
 }
 
+void PlaneDetector::set_exclusions(std::span<const PlaneExclusion> exclusions) noexcept {
+  merger_.set_exclusions(exclusions);
+  // refine() asks the exclusions only for walls from lines: then a section's planes depend on
+  // them, and new exclusions make every kept section new.
+  exclusions_salt_ = config_.walls_from_lines ? SectionCache::salt_of(exclusions) : 0;
+}
+
 void PlaneDetector::detect_in_section(std::size_t index) noexcept {
   // Samples that an earlier, overlapping section gave to a plane neither vote nor count: if
   // too few points are left for a plane, the section is done before its samples are read.
   const CellKey section = sections_.sections()[index];
   const std::span<const std::uint32_t> blocks = sections_.blocks_of(index);
+  const SectionCache::Entry* before = caching_ ? cache_.previous(section) : nullptr;
   std::uint64_t free_points = 0;
   for (const std::uint32_t block : blocks) {
     free_points += block_free_points_[block];
   }
   if (static_cast<double>(free_points) < config_.min_votes) {
+    if (before != nullptr && before->took_samples != 0) {
+      cache_.forget_taken(section, blocks, voxels_);
+    }
     return;
   }
-  const std::size_t count = sections_.gather(voxels_, blocks, section_samples_);
-  const std::span<const Voxel> voxels = voxels_.voxels();
   ++stats_.sections_searched;
+  if (!caching_) {
+    search_section(section, blocks);
+    return;
+  }
+  SectionCache::Entry entry{
+      .section = section,
+      .signature = cache_.signature(section, blocks),
+      .first_plane = static_cast<std::uint32_t>(merger_.section_plane_count())};
+  if (before != nullptr && before->signature == entry.signature) {
+    replay_section(*before, section, blocks);
+    entry.took_samples = before->took_samples;
+    ++stats_.sections_replayed;
+  } else {
+    // What this section took last time (if it was searched then) is decided again.
+    cache_.forget_taken(section, blocks, voxels_);
+    const std::uint64_t taken_before = stats_.samples_taken;
+    search_section(section, blocks);
+    entry.took_samples = stats_.samples_taken > taken_before ? 1 : 0;
+  }
+  entry.plane_count = static_cast<std::uint16_t>(merger_.section_plane_count() - entry.first_plane);
+  cache_.record(entry);
+}
+
+void PlaneDetector::search_section(CellKey section,
+                                   std::span<const std::uint32_t> blocks) noexcept {
+  const std::size_t count = sections_.gather(voxels_, blocks, section_samples_);
+  const std::span<Voxel> voxels = voxels_.voxels();
   const Eigen::Vector3f centre = sections_.centre_m(section);
   accumulator_.clear();
   for (std::size_t i = 0; i < count; ++i) {
-    const Voxel& voxel = voxels[section_samples_[i]];
-    section_positions_[i] = voxel.centroid_m - centre;
+    Voxel& voxel = voxels[section_samples_[i]];
+    section_positions_[i] = voxels_.centroid_m(voxel) - centre;
     if (voxel.owner < 0 && voxel.point_count > 0) {
+      if (voxel.axis_cell == kAxisCellUnknown &&
+          (voxel.shape == LocalShape::kPlanar || voxel.shape == LocalShape::kLinear)) {
+        voxel.axis_cell = orientations_.cell_of(voxel.axis);
+      }
       vote_sample(voxel, section_positions_[i]);
     }
   }
@@ -231,6 +293,40 @@ void PlaneDetector::detect_in_section(std::size_t index) noexcept {
     if (refine(peaks_[i], centre, count, plane)) {
       merger_.add(plane);
     }
+  }
+}
+
+void PlaneDetector::replay_section(const SectionCache::Entry& before, CellKey section,
+                                   std::span<const std::uint32_t> blocks) noexcept {
+  for (const SectionPlane& plane : cache_.planes_of(before)) {
+    merger_.add(plane);
+  }
+  if (before.took_samples == 0) {
+    return;
+  }
+  // The owner only has to say "taken": no later step asks which plane took a sample.
+  const auto owner = static_cast<std::int32_t>(merger_.section_plane_count());
+  const std::span<Voxel> voxels = voxels_.voxels();
+  for (const std::uint32_t block : blocks) {
+    const std::uint64_t live = voxels_.live_mask(block);
+    const std::uint32_t first = voxels_.block_range(block).first;
+    for (std::uint64_t cells = cache_.taken_by(section, block, voxels_.block_key(block));
+         cells != 0; cells &= cells - 1) {
+      const auto bit = static_cast<std::uint32_t>(std::countr_zero(cells));
+      const std::uint64_t below = live & ((std::uint64_t{1} << bit) - 1);
+      take_sample(voxels[first + static_cast<std::uint32_t>(std::popcount(below))], owner, section);
+    }
+  }
+}
+
+void PlaneDetector::take_sample(Voxel& voxel, std::int32_t owner, CellKey section) noexcept {
+  voxel.owner = owner;
+  block_free_points_[voxel.block] -= votes(voxel) ? voxel.point_count : 0;
+  ++stats_.samples_taken;
+  if (caching_) {
+    const auto cell = unpack_cell(voxel.key);
+    cache_.take(section, voxel.block, voxels_.block_key(voxel.block),
+                bit_in_block(cell.x(), cell.y(), cell.z()));
   }
 }
 
@@ -285,9 +381,7 @@ bool PlaneDetector::refine(const HoughPeak& peak, const Eigen::Vector3f& section
   }
   const auto owner = static_cast<std::int32_t>(merger_.section_plane_count());
   for (std::size_t k = 0; k < inliers; ++k) {
-    Voxel& voxel = voxels[section_samples_[inliers_[k]]];
-    voxel.owner = owner;
-    block_free_points_[voxel.block] -= votes(voxel) ? voxel.point_count : 0;
+    take_sample(voxels[section_samples_[inliers_[k]]], owner, out.section);
   }
   out.moments = moments.shifted(centre);
   out.normal_unit = normal;
@@ -364,7 +458,8 @@ void PlaneDetector::set_corners(const Eigen::Vector3d& normal, double d_m, std::
 
 std::size_t PlaneDetector::memory_bytes() const noexcept {
   return orientations_.memory_bytes() + voxels_.memory_bytes() + sections_.memory_bytes() +
-         accumulator_.memory_bytes() + merger_.memory_bytes() + block_free_points_.size_bytes() +
+         accumulator_.memory_bytes() + merger_.memory_bytes() +
+         (caching_ ? cache_.memory_bytes() : 0) + block_free_points_.size_bytes() +
          section_samples_.size_bytes() + section_positions_.size_bytes() + inliers_.size_bytes() +
          peaks_.size_bytes();
 }

@@ -66,7 +66,8 @@ std::string validate(const PlanesConfig& c) {
   if (!(c.label_tolerance_deg > 0.0 && c.label_tolerance_deg < 45.0)) {
     return "label_tolerance_deg must be in (0, 45)";
   }
-  if (c.max_samples < 1 || c.max_samples_per_section < 1 || c.max_patches < 1 || c.max_planes < 1) {
+  if (c.max_samples < 1 || c.max_samples_per_section < 1 || c.max_patches < 1 || c.max_planes < 1 ||
+      (c.keep_shapes && c.max_kept_sections < 1)) {
     return "capacities must be >= 1";
   }
   if (c.max_samples >= (std::size_t{1} << 31) || c.max_patches >= (std::size_t{1} << 31)) {

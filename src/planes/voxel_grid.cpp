@@ -103,16 +103,17 @@ void VoxelGrid::keep_shapes(Arena& arena) {
   dense_serial_ = arena.allocate_array<std::uint32_t>(max_voxels, "planes.kept_shapes");
   kept_ = arena.allocate_array<KeptShape>(max_voxels, "planes.kept_shapes");
   block_flags_ = arena.allocate_array<std::uint8_t>(block_keys_.size(), "planes.kept_shapes");
+  kept_coarse_ = arena.allocate_array<CoarseSpread>(block_keys_.size(), "planes.kept_shapes");
   keeping_shapes_ = true;
   clear();
 }
 
-std::size_t VoxelGrid::shape_cache_bytes(std::size_t max_voxels) noexcept {
+std::size_t VoxelGrid::shape_cache_bytes(std::size_t max_voxels, std::size_t max_blocks) noexcept {
+  const std::size_t blocks = max_blocks == 0 ? max_voxels : max_blocks;
   const std::size_t slots = std::bit_ceil(std::max<std::size_t>(2 * max_voxels, 64));
   constexpr std::size_t kAlignment = 64;  // per allocation, at most
-  return slots * sizeof(std::uint32_t) +
-         max_voxels * (sizeof(std::uint32_t) + sizeof(KeptShape) + sizeof(std::uint8_t)) +
-         4 * kAlignment;
+  return slots * sizeof(std::uint32_t) + max_voxels * (sizeof(std::uint32_t) + sizeof(KeptShape)) +
+         blocks * (sizeof(std::uint8_t) + sizeof(CoarseSpread)) + 5 * kAlignment;
 }
 
 std::size_t VoxelGrid::arena_bytes(std::size_t max_voxels, std::size_t max_blocks) noexcept {
@@ -145,6 +146,10 @@ std::size_t VoxelGrid::count_voxels(std::span<const Eigen::Vector3f> points_m, d
 }
 
 void VoxelGrid::clear() noexcept {
+  // Block indices start over: no block's coarse spread is known.
+  for (std::size_t block = 0; keeping_shapes_ && block < block_count_; ++block) {
+    kept_coarse_[block].known = false;
+  }
   // Few voxels in a large table: empty just their slots. Linear probing stays consistent
   // when keys are removed newest first.
   if (slot_count_ * 8 < table_.size()) {
@@ -609,9 +614,16 @@ void VoxelGrid::estimate_shapes(const ShapeOptions& options) noexcept {
   estimate_fine_shapes(limits, thickness_sum_m, planar_count);
   surface_noise_m_ = planar_count > 0 ? thickness_sum_m / static_cast<double>(planar_count) : 0.0;
   // Level slices have no second look: at 2.4 m they are flat too, and only the slice.
-  if (!options.coarse_second_look || options.level_slices) {
-    return;
+  if (options.coarse_second_look && !options.level_slices) {
+    take_coarse_look(options, limits);
   }
+  if (keeping_shapes_) {
+    std::fill_n(block_flags_.begin(), block_count_, std::uint8_t{0});
+  }
+}
+
+void VoxelGrid::take_coarse_look(const ShapeOptions& options, ShapeLimits limits) noexcept {
+  const auto squared = [](double ratio) { return static_cast<float>(ratio * ratio); };
   // The second look knows how thick this cloud's surfaces are: a slab a few surface-noise
   // thicknesses thick is a blurred wall (pose errors blur every surface alike), where a crisp
   // cloud's slab of that thickness is a hedge or a row of bushes.
@@ -625,8 +637,7 @@ void VoxelGrid::estimate_shapes(const ShapeOptions& options) noexcept {
     if (std::none_of(samples.begin(), samples.end(), scattered)) {
       continue;
     }
-    const auto b = unpack_cell(block_keys_[block]);
-    const Eigen::Vector3f normal = coarse_normal(b.x(), b.y(), b.z(), limits);
+    const Eigen::Vector3f normal = coarse_normal(block, limits);
     if (normal.isZero()) {
       continue;
     }
@@ -715,9 +726,6 @@ void VoxelGrid::estimate_fine_shapes(const ShapeLimits& limits, double& thicknes
       }
     }
     thickness_sum_m += static_cast<double>(thickness_sum);
-  }
-  if (keeping_shapes_) {
-    std::fill_n(block_flags_.begin(), block_count_, std::uint8_t{0});
   }
 }
 
@@ -820,8 +828,8 @@ struct Spread {
 
 }  // namespace
 
-Eigen::Vector3f VoxelGrid::coarse_normal(std::int64_t bx, std::int64_t by, std::int64_t bz,
-                                         const ShapeLimits& limits) noexcept {
+VoxelGrid::CoarseSpread VoxelGrid::coarse_spread(std::int64_t bx, std::int64_t by, std::int64_t bz,
+                                                 const ShapeLimits* limits) noexcept {
   CentredSums around;
   const float block_m = size_m_ * static_cast<float>(kBlockEdge);
   for (std::int64_t dx = -1; dx <= 1; ++dx) {
@@ -841,25 +849,54 @@ Eigen::Vector3f VoxelGrid::coarse_normal(std::int64_t bx, std::int64_t by, std::
       }
     }
   }
-  if (around.values[0] < limits.min_points) {
-    return Eigen::Vector3f::Zero();
+  CoarseSpread out;
+  out.point_count = around.values[0];
+  if (limits != nullptr && around.values[0] < limits->min_points) {
+    return out;
   }
   const Spread spread = spread_of(around);
-  const Eigen::Vector3f& l = spread.eigenvalues_m2;
-  const bool planar = l(0) <= limits.planar_ratio_sq * l(1);
-  const bool noisy_slab =
-      l(0) <= limits.noisy_slab_ratio_sq * l(1) && l(0) <= limits.noisy_slab_thickness_m2;
-  if (!planar && !noisy_slab) {
-    return Eigen::Vector3f::Zero();
+  out.thickness_m2 = spread.eigenvalues_m2(0);
+  out.width_m2 = spread.eigenvalues_m2(1);
+  // The eigenvector only when some limits could take it (without limits: always, to keep).
+  if (limits == nullptr || coarse_normal_of(out, *limits, true)) {
+    out.normal = eigenvector_of(spread.covariance, out.thickness_m2);
   }
-  Eigen::Vector3f normal = eigenvector_of(spread.covariance, l(0));
+  return out;
+}
+
+bool VoxelGrid::coarse_normal_of(const CoarseSpread& spread, const ShapeLimits& limits,
+                                 bool ignoring_normal) noexcept {
+  if (spread.point_count < limits.min_points) {
+    return false;
+  }
+  const float l0 = spread.thickness_m2;
+  const float l1 = spread.width_m2;
+  const bool planar = l0 <= limits.planar_ratio_sq * l1;
+  const bool noisy_slab =
+      l0 <= limits.noisy_slab_ratio_sq * l1 && l0 <= limits.noisy_slab_thickness_m2;
+  if (!planar && !noisy_slab) {
+    return false;
+  }
   // A noisy slab is a wall only: a level laser's returns on everything it crosses (walls,
   // cars, bushes) lie in a horizontal sheet as thick as its pitch noise, a false floor.
   constexpr float kMaxSlabNormalZ = 0.5f;  // the normal at least 30 deg off vertical
-  if (!planar && std::abs(normal.z()) > kMaxSlabNormalZ) {
-    return Eigen::Vector3f::Zero();
+  return planar || ignoring_normal || std::abs(spread.normal.z()) <= kMaxSlabNormalZ;
+}
+
+Eigen::Vector3f VoxelGrid::coarse_normal(std::uint32_t block, const ShapeLimits& limits) noexcept {
+  const auto b = unpack_cell(block_keys_[block]);
+  if (!keeping_shapes_) {
+    const CoarseSpread spread = coarse_spread(b.x(), b.y(), b.z(), &limits);
+    return coarse_normal_of(spread, limits, false) ? spread.normal : Eigen::Vector3f::Zero();
   }
-  return normal;
+  // Kept: the spread of the blocks around changes only when one of them did (a stale block);
+  // the limits follow the cloud's surface noise, so they are applied anew.
+  CoarseSpread& kept = kept_coarse_[block];
+  if (!kept.known || (block_flags_[block] & kStale) != 0) {
+    kept = coarse_spread(b.x(), b.y(), b.z(), nullptr);
+    kept.known = true;
+  }
+  return coarse_normal_of(kept, limits, false) ? kept.normal : Eigen::Vector3f::Zero();
 }
 
 float VoxelGrid::estimate_shape(Voxel& voxel, const BlockNeighbourhood& around,

@@ -594,6 +594,94 @@ TEST(VoxelGrid, KeptShapesAreTheShapesOfAGridBuiltAfresh) {
   }
 }
 
+// The samples of some points, as the mapper's window hands them to the detector.
+std::vector<VoxelSums> samples_of(std::span<const Eigen::Vector3f> points) {
+  constexpr std::size_t kSamples = std::size_t{1} << 17;
+  Arena arena(VoxelGrid::arena_bytes(kSamples));
+  VoxelGrid grid;
+  grid.init(arena, PlanesConfig{}.sample_size_m, kSamples);
+  grid.add_points(points);
+  grid.compact();
+  return {grid.voxels().begin(), grid.voxels().end()};
+}
+
+void expect_same_planes(std::span<const msg::PlanePatch> a, std::span<const msg::PlanePatch> b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].kind, b[i].kind) << "plane " << i;
+    EXPECT_EQ(a[i].normal, b[i].normal) << "plane " << i;
+    EXPECT_EQ(a[i].d_m, b[i].d_m) << "plane " << i;
+    EXPECT_EQ(a[i].support, b[i].support) << "plane " << i;
+    EXPECT_EQ(a[i].rmse_m, b[i].rmse_m) << "plane " << i;
+    ASSERT_EQ(a[i].polygon_size, b[i].polygon_size) << "plane " << i;
+    for (std::size_t k = 0; k < a[i].polygon_size; ++k) {
+      EXPECT_EQ(a[i].polygon_m[k], b[i].polygon_m[k]) << "plane " << i << " vertex " << k;
+    }
+  }
+}
+
+// Kept sections (SectionCache): after some samples change and some are new, a detector that
+// keeps its shapes and sections finds exactly the planes of one that starts afresh from the
+// same samples, and searches again only the sections where something changed.
+TEST(PlaneDetector, KeptSectionsGiveThePlanesOfADetectionAfresh) {
+  PlanesConfig config;
+  config.max_samples = 1 << 17;
+  // Before: a room with a bush, and a wall blurred by pose errors (coarse look) beside it.
+  std::vector<Eigen::Vector3f> points = room_cloud(1, true);
+  for (const Eigen::Vector3f& p : blurred_wall(0.05)) {
+    points.push_back(p + Eigen::Vector3f(15.0f, 0.0f, 0.0f));
+  }
+  const std::vector<VoxelSums> before = samples_of(points);
+  // After: more points on one wall of the room (changed samples) and a second room 30 m
+  // away (new samples, new blocks).
+  std::mt19937 random(5);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  for (int i = 0; i < 4000; ++i) {
+    points.emplace_back(4.0f, -3.0f + 2.0f * unit(random), 3.0f * unit(random));
+  }
+  for (const Eigen::Vector3f& p : room_cloud(2, false)) {
+    points.push_back(p + Eigen::Vector3f(0.0f, 30.0f, 0.0f));
+  }
+  const std::vector<VoxelSums> after = samples_of(points);
+
+  PlanesConfig kept_config = config;
+  kept_config.keep_shapes = true;
+  DetectorFixture kept(kept_config);
+  for (const VoxelSums& sample : before) {
+    kept.detector.add_sample(sample);
+  }
+  ASSERT_FALSE(kept.detector.detect().empty());
+  EXPECT_EQ(kept.detector.stats().sections_replayed, 0u) << "nothing was kept yet";
+  for (const VoxelSums& sample : after) {
+    kept.detector.set_sample(sample);
+  }
+  const std::vector<msg::PlanePatch> kept_planes = [&] {
+    const auto planes = kept.detector.detect();
+    return std::vector<msg::PlanePatch>(planes.begin(), planes.end());
+  }();
+  const DetectionStats stats = kept.detector.stats();
+
+  DetectorFixture fresh(config);
+  for (const VoxelSums& sample : after) {
+    fresh.detector.add_sample(sample);
+  }
+  const auto fresh_planes = fresh.detector.detect();
+  // Two rooms (one floor: they stand on the same plane) and the blurred wall.
+  EXPECT_GE(fresh_planes.size(), 12u);
+  expect_same_planes(kept_planes, fresh_planes);
+  EXPECT_EQ(stats.sections_searched, fresh.detector.stats().sections_searched);
+  EXPECT_GT(stats.sections_replayed, stats.sections_searched / 4);
+  EXPECT_LT(stats.sections_replayed, stats.sections_searched) << "the new room was searched";
+
+  // Started over (a tile left the window): nothing kept is valid, the planes are the same.
+  kept.detector.clear();
+  for (const VoxelSums& sample : after) {
+    kept.detector.add_sample(sample);
+  }
+  expect_same_planes(kept.detector.detect(), fresh_planes);
+  EXPECT_EQ(kept.detector.stats().sections_replayed, 0u);
+}
+
 TEST(VoxelGrid, CountingVoxelsBeforeInitGivesTheGridsOwnCount) {
   // Points on cell borders, far away, and not finite: the count must be the grid's, so that a
   // grid sized by it never drops a point.

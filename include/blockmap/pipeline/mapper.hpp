@@ -128,6 +128,8 @@ struct MapperCounters {
   std::uint64_t reorder_forced = 0;  // the reorder buffer was full: its oldest went early
   std::uint64_t extractions = 0;
   std::uint64_t incremental_extractions = 0;  // of those, with the detector's kept samples
+  std::uint64_t sections_searched = 0;        // over all extractions
+  std::uint64_t sections_replayed = 0;        // of those, as the extraction before found them
   std::size_t peak_blocks = 0;             // the detector's occupied blocks, for sizing max_blocks
   std::uint64_t scan_planes_rejected = 0;  // detected planes that were a laser's scan plane
   std::uint64_t points = 0;

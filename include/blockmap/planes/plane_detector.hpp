@@ -19,6 +19,7 @@
 #include "blockmap/planes/orientation_grid.hpp"
 #include "blockmap/planes/plane_merger.hpp"
 #include "blockmap/planes/planes_config.hpp"
+#include "blockmap/planes/section_cache.hpp"
 #include "blockmap/planes/section_grid.hpp"
 #include "blockmap/planes/voxel_grid.hpp"
 
@@ -34,9 +35,11 @@ struct DetectionStats {
   std::uint64_t scattered_samples = 0;
   std::uint64_t sections = 0;
   std::uint64_t sections_searched = 0;  // with enough free points to hold a plane
+  std::uint64_t sections_replayed = 0;  // of those, as they were last time (SectionCache)
   std::uint64_t votes = 0;
   std::uint64_t peaks = 0;
   std::uint64_t section_planes = 0;
+  std::uint64_t samples_taken = 0;  // by section planes (each sample once)
   std::uint64_t planes = 0;
   std::uint64_t planes_excluded = 0;  // known not to be surfaces (set_exclusions)
   double surface_noise_m = 0.0;       // VoxelGrid::surface_noise_m(): how blurred the cloud is
@@ -62,9 +65,7 @@ class PlaneDetector {
   void set_sample(const VoxelSums& sample) noexcept { voxels_.set_sums(sample); }
 
   // Planes known not to be surfaces (a laser's scan plane), dropped by the next detect()s.
-  void set_exclusions(std::span<const PlaneExclusion> exclusions) noexcept {
-    merger_.set_exclusions(exclusions);
-  }
+  void set_exclusions(std::span<const PlaneExclusion> exclusions) noexcept;
 
   // The planes of every point added since clear(), largest first. The span stays valid
   // until the next detect() or clear().
@@ -81,6 +82,13 @@ class PlaneDetector {
 
  private:
   void detect_in_section(std::size_t index) noexcept;
+  // The section's Hough transform: votes, peaks, and each peak refined into a plane.
+  void search_section(CellKey section, std::span<const std::uint32_t> blocks) noexcept;
+  // A section whose inputs are last time's (SectionCache): its planes and samples again.
+  void replay_section(const SectionCache::Entry& before, CellKey section,
+                      std::span<const std::uint32_t> blocks) noexcept;
+  // A sample taken by a plane of `section`: it neither votes nor counts for later sections.
+  void take_sample(Voxel& voxel, std::int32_t owner, CellKey section) noexcept;
   // Whether a sample votes at all (the local-shape mode skips scattered samples).
   [[nodiscard]] bool votes(const Voxel& voxel) const noexcept;
   void vote_sample(const Voxel& voxel, const Eigen::Vector3f& position_m) noexcept;
@@ -103,6 +111,9 @@ class PlaneDetector {
   SectionGrid sections_;
   HoughAccumulator accumulator_;
   PlaneMerger merger_;
+  SectionCache cache_;
+  bool caching_ = false;               // keep_shapes with small enough sections
+  std::uint64_t exclusions_salt_ = 0;  // of the exclusions refine() asks (walls_from_lines)
   std::span<std::uint32_t> block_free_points_;  // points of unclaimed voting samples, per block
   std::span<std::uint32_t> section_samples_;
   std::span<Eigen::Vector3f> section_positions_;

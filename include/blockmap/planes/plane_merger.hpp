@@ -77,6 +77,10 @@ class PlaneMerger {
     return output_moments_.first(output_count_);
   }
   [[nodiscard]] std::size_t section_plane_count() const noexcept { return plane_count_; }
+  // The section planes added since clear(), in their order.
+  [[nodiscard]] std::span<const SectionPlane> section_planes() const noexcept {
+    return planes_.first(plane_count_);
+  }
   [[nodiscard]] const Counters& counters() const noexcept { return counters_; }
   [[nodiscard]] std::size_t memory_bytes() const noexcept;
   // Bytes init() takes from the arena for `config` (alignment padding included).

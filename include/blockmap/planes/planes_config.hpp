@@ -60,8 +60,11 @@ struct PlanesConfig {
   double noisy_slab_per_noise = 4.0;
   // Keep the samples' fine shapes from one detect() to the next until clear() (the mapper's
   // window, which changes a few per cent a second; VoxelGrid::keep_shapes). The batch tool
-  // detects once and has no use for it.
+  // detects once and has no use for it. With it, a section whose samples and shapes are
+  // as they were is not searched again either (SectionCache): the last
+  // max_kept_sections searched sections are remembered.
   bool keep_shapes = false;
+  std::size_t max_kept_sections = 16384;
 
   // A cell of the accumulator is a plane when its votes (points, summed over the cell and its
   // two neighbours in d) reach this threshold and no neighbouring cell has more.

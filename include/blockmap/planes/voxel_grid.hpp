@@ -114,9 +114,8 @@ struct Voxel : VoxelSums {
   LocalShape shape = LocalShape::kTooFewPoints;
   Eigen::Vector3f axis = Eigen::Vector3f::UnitZ();  // normal (planar) or direction (linear)
   std::uint32_t axis_cell = 0;  // the orientation cell of the axis (the detector sets it)
-  Eigen::Vector3f centroid_m = Eigen::Vector3f::Zero();  // the mean point (the detector sets it)
-  std::int32_t owner = -1;  // the plane patch that took this voxel, or -1
-  std::uint32_t block = 0;  // the index of its block
+  std::int32_t owner = -1;      // the plane patch that took this voxel, or -1
+  std::uint32_t block = 0;      // the index of its block
 };
 
 // The moments of some points about a block's centre, as twelve floats (count, the sum, the
@@ -202,7 +201,8 @@ class VoxelGrid {
   // (add_point and remove_point do not say which block they change: not with kept shapes.)
   // Call once after init(); takes shape_cache_bytes() from the arena.
   void keep_shapes(Arena& arena);
-  [[nodiscard]] static std::size_t shape_cache_bytes(std::size_t max_voxels) noexcept;
+  [[nodiscard]] static std::size_t shape_cache_bytes(std::size_t max_voxels,
+                                                     std::size_t max_blocks = 0) noexcept;
   // Samples whose fine shape the last estimate_shapes() took from the kept ones.
   [[nodiscard]] std::uint64_t shapes_reused() const noexcept { return shapes_reused_; }
   // Adds many points, fetching the slots of points a few ahead while it works on this one.
@@ -232,6 +232,10 @@ class VoxelGrid {
   [[nodiscard]] std::size_t block_count() const noexcept { return block_count_; }
   [[nodiscard]] CellKey block_key(std::size_t block) const noexcept { return block_keys_[block]; }
   [[nodiscard]] BlockRange block_range(std::size_t block) const noexcept;
+  // The cells of a block that hold samples after compact() (bit_in_block order).
+  [[nodiscard]] std::uint64_t live_mask(std::size_t block) const noexcept {
+    return live_masks_[block];
+  }
   // The index of the block with `block_key` (block coordinates), or CellIndex::kAbsent.
   [[nodiscard]] std::uint32_t find_block(CellKey block_key) const noexcept {
     return block_index_.find(block_key);
@@ -255,7 +259,8 @@ class VoxelGrid {
            block_keys_.size_bytes() + block_masks_.size_bytes() + live_masks_.size_bytes() +
            block_first_.size_bytes() + block_order_.size_bytes() + centred_sums_.size_bytes() +
            block_sums_.size_bytes() + block_summed_.size_bytes() + serial_of_slot_.size_bytes() +
-           dense_serial_.size_bytes() + kept_.size_bytes() + block_flags_.size_bytes();
+           dense_serial_.size_bytes() + kept_.size_bytes() + block_flags_.size_bytes() +
+           kept_coarse_.size_bytes();
   }
   // Bytes init() takes from the arena for `max_voxels`.
   [[nodiscard]] static std::size_t arena_bytes(std::size_t max_voxels,
@@ -323,8 +328,25 @@ class VoxelGrid {
   [[nodiscard]] CentredSums sum_block(std::uint32_t block) const noexcept;
   // The planar normal of the 3 x 3 x 3 blocks around block (bx, by, bz), or zero when they
   // are not planar. Sums the blocks it needs first.
-  [[nodiscard]] Eigen::Vector3f coarse_normal(std::int64_t bx, std::int64_t by, std::int64_t bz,
+  [[nodiscard]] Eigen::Vector3f coarse_normal(std::uint32_t block,
                                               const ShapeLimits& limits) noexcept;
+  // The second look over the blocks that hold scattered samples.
+  void take_coarse_look(const ShapeOptions& options, ShapeLimits limits) noexcept;
+  // The spread of the 3 x 3 x 3 blocks around one block: its two smallest eigenvalues, and
+  // the normal when `limits` may take it (always without limits: the spread is kept).
+  struct CoarseSpread {
+    Eigen::Vector3f normal = Eigen::Vector3f::Zero();
+    float point_count = 0.0f;
+    float thickness_m2 = 0.0f;  // the smallest eigenvalue
+    float width_m2 = 0.0f;      // the middle one
+    bool known = false;         // kept: computed since the block's neighbourhood last changed
+  };
+  [[nodiscard]] CoarseSpread coarse_spread(std::int64_t bx, std::int64_t by, std::int64_t bz,
+                                           const ShapeLimits* limits) noexcept;
+  // Whether the limits make the spread a surface (ignoring_normal: before the normal is
+  // known, the test of the ratios alone).
+  [[nodiscard]] static bool coarse_normal_of(const CoarseSpread& spread, const ShapeLimits& limits,
+                                             bool ignoring_normal) noexcept;
 
   double voxel_size_m_ = 0.0;
   double surface_noise_m_ = 0.0;
@@ -368,6 +390,7 @@ class VoxelGrid {
   std::span<std::uint32_t> dense_serial_;
   std::span<KeptShape> kept_;
   std::span<std::uint8_t> block_flags_;
+  std::span<CoarseSpread> kept_coarse_;  // per block, with kept shapes
   std::uint64_t shapes_reused_ = 0;
   std::size_t block_count_ = 0;
   std::uint32_t shift_ = 64;
