@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "blockmap/core/check.hpp"
+#include "blockmap/core/linear_probing.hpp"
 
 namespace blockmap::map {
 namespace {
@@ -184,19 +185,11 @@ void VoxelWindow::erase_key(planes::CellKey key) noexcept {
   while (table_[hole].key != key) {
     hole = (hole + 1) & mask;
   }
-  // Backward shift: every later key of the run whose home is not between the hole and it
-  // moves into the hole, so that lookups never meet a gap before their key.
-  std::size_t at = (hole + 1) & mask;
-  while (table_[at].key != planes::kNoCell) {
-    const std::size_t home = home_of(table_[at].key);
-    const bool stays = hole <= at ? (hole < home && home <= at) : (hole < home || home <= at);
-    if (!stays) {
-      table_[hole] = table_[at];
-      hole = at;
-    }
-    at = (at + 1) & mask;
-  }
-  table_[hole] = TableSlot{};
+  erase_shifting_back(
+      hole, mask, [this](std::size_t at) { return table_[at].key != planes::kNoCell; },
+      [this](std::size_t at) { return home_of(table_[at].key); },
+      [this](std::size_t from, std::size_t to) { table_[to] = table_[from]; },
+      [this](std::size_t at) { table_[at] = TableSlot{}; });
 }
 
 void VoxelWindow::add_point(const Eigen::Vector3f& point_m) noexcept {

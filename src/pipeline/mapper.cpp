@@ -369,7 +369,7 @@ void Mapper::project(const QueuedScan& queued) noexcept {
     last.z_m = held_z_m_;
   }
   // The window follows the robot: tiles it leaves behind go to the registry as they leave.
-  window_.recentre(Eigen::Vector2d(first.x_m, first.y_m), registry_);
+  window_.recentre(Eigen::Vector2d(first.x_m, first.y_m), tile_leaving_);
   record_laser_position(queued.laser, first);
   const std::size_t count = projectors_[queued.laser].project(scan, first, last, points_);
   window_.add_points(points_.first(count));
@@ -418,13 +418,19 @@ void Mapper::refit_buildings() noexcept {
   building_fitter_.finish();
 }
 
+void Mapper::TileLeaving::on_evicted(const map::VoxelWindow::EvictedTile& tile) noexcept {
+  mapper_->registry_.on_evicted(tile);
+  if (mapper_->config_.incremental_extraction && mapper_->extracted_before_) {
+    for (const planes::VoxelSums& sample : tile.samples) {
+      mapper_->detector_.remove_sample(sample.key);
+    }
+  }
+}
+
 void Mapper::give_detector_the_window() noexcept {
-  // A tile that left took its samples with it: the detector starts over. Otherwise it only
-  // needs the samples that gained points since the last extraction.
-  const std::uint64_t evicted = window_.counters().tiles_evicted;
-  const bool incremental = config_.incremental_extraction && extracted_before_ &&
-                           evicted == tiles_evicted_at_extraction_;
-  if (incremental) {
+  // The detector keeps its grid from one extraction to the next and is given only the samples
+  // that gained points (samples that left went as their tile did); or it starts over.
+  if (config_.incremental_extraction && extracted_before_) {
     window_.for_each_touched(
         [this](const planes::VoxelSums& sample) { detector_.set_sample(sample); });
     ++counters_.incremental_extractions;
@@ -435,7 +441,6 @@ void Mapper::give_detector_the_window() noexcept {
   }
   window_.forget_touched();
   extracted_before_ = true;
-  tiles_evicted_at_extraction_ = evicted;
 }
 
 bool Mapper::step() noexcept {

@@ -76,6 +76,7 @@ void SectionCache::init(Arena& arena, std::size_t max_blocks, std::size_t max_se
   BLOCKMAP_CHECK_MSG(max_blocks >= 1 && max_sections >= 1 && max_section_planes >= 1,
                      "section cache capacities must be >= 1");
   block_signatures_ = arena.allocate_array<std::uint64_t>(max_blocks, "planes.section_cache");
+  block_keys_ = arena.allocate_array<CellKey>(max_blocks, "planes.section_cache");
   taken_cells_ = arena.allocate_array<std::uint64_t>(max_blocks, "planes.section_cache");
   taken_codes_ =
       arena.allocate_array<std::uint64_t>(max_blocks * kCodeWords, "planes.section_cache");
@@ -89,12 +90,13 @@ void SectionCache::init(Arena& arena, std::size_t max_blocks, std::size_t max_se
 std::size_t SectionCache::arena_bytes(std::size_t max_blocks, std::size_t max_sections,
                                       std::size_t max_section_planes) noexcept {
   constexpr std::size_t kAlignment = 64;  // per allocation, at most
-  return max_blocks * (2 + kCodeWords) * sizeof(std::uint64_t) + 2 * max_sections * sizeof(Entry) +
+  return max_blocks * (3 + kCodeWords) * sizeof(std::uint64_t) + 2 * max_sections * sizeof(Entry) +
          max_section_planes * sizeof(SectionPlane) + 6 * kAlignment;
 }
 
 void SectionCache::invalidate() noexcept {
   std::fill_n(taken_codes_.begin(), block_count_ * kCodeWords, std::uint64_t{0});
+  std::fill_n(block_keys_.begin(), block_count_, kNoCell);
   entry_count_[0] = 0;
   entry_count_[1] = 0;
   block_count_ = 0;
@@ -134,14 +136,29 @@ void SectionCache::begin(const VoxelGrid& grid, std::uint64_t salt) noexcept {
   }
   BLOCKMAP_CHECK_MSG(grid.block_count() <= block_signatures_.size(),
                      "section cache sized for fewer blocks than the grid holds");
-  block_count_ = grid.block_count();
-  for (std::uint32_t block = 0; block < block_count_; ++block) {
+  // Indices new since last time start with kNoCell.
+  std::fill(
+      block_keys_.begin() + static_cast<std::ptrdiff_t>(block_count_),
+      block_keys_.begin() + static_cast<std::ptrdiff_t>(std::max(block_count_, grid.block_count())),
+      kNoCell);
+  block_count_ = std::max(block_count_, grid.block_count());
+  for (std::uint32_t block = 0; block < grid.block_count(); ++block) {
+    // An erased block's index, empty or holding another block: nothing of it was taken.
+    if (grid.live_mask(block) == 0 || block_keys_[block] != grid.block_key(block)) {
+      forget_block(block);
+      block_keys_[block] = grid.live_mask(block) == 0 ? kNoCell : grid.block_key(block);
+    }
     block_signatures_[block] = sign_block(grid, block);
   }
-  std::fill_n(taken_cells_.begin(), block_count_, std::uint64_t{0});
+  std::fill_n(taken_cells_.begin(), grid.block_count(), std::uint64_t{0});
   current_ ^= 1;
   entry_count_[current_] = 0;
   cursor_ = 0;
+}
+
+void SectionCache::forget_block(std::uint32_t block) noexcept {
+  std::fill_n(taken_codes_.begin() + static_cast<std::ptrdiff_t>(block * kCodeWords), kCodeWords,
+              std::uint64_t{0});
 }
 
 std::uint64_t SectionCache::signature(CellKey section,
@@ -212,8 +229,9 @@ void SectionCache::end(std::span<const SectionPlane> planes, bool complete) noex
 }
 
 std::size_t SectionCache::memory_bytes() const noexcept {
-  return block_signatures_.size_bytes() + taken_cells_.size_bytes() + taken_codes_.size_bytes() +
-         entries_[0].size_bytes() + entries_[1].size_bytes() + kept_planes_.size_bytes();
+  return block_signatures_.size_bytes() + block_keys_.size_bytes() + taken_cells_.size_bytes() +
+         taken_codes_.size_bytes() + entries_[0].size_bytes() + entries_[1].size_bytes() +
+         kept_planes_.size_bytes();
 }
 
 }  // namespace blockmap::planes

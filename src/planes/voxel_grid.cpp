@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 
 #include "blockmap/core/check.hpp"
+#include "blockmap/core/linear_probing.hpp"
 #include "blockmap/planes/fast_trig.hpp"
 
 namespace blockmap::planes {
@@ -63,6 +64,24 @@ bool CellIndex::find_or_insert(CellKey key, std::uint32_t value, std::uint32_t& 
   }
 }
 
+void CellIndex::erase(CellKey key) noexcept {
+  std::size_t slot = home_slot(key);
+  for (; slots_[slot].key != key; slot = (slot + 1) & mask_) {
+    if (slots_[slot].value == kAbsent) {
+      return;
+    }
+  }
+  if (slots_[slot].value == kAbsent) {
+    return;  // an empty slot that holds the key's bits by chance
+  }
+  erase_shifting_back(
+      slot, mask_, [this](std::size_t at) { return slots_[at].value != kAbsent; },
+      [this](std::size_t at) { return home_slot(slots_[at].key); },
+      [this](std::size_t from, std::size_t to) { slots_[to] = slots_[from]; },
+      [this](std::size_t at) { slots_[at] = Slot{}; });
+  --size_;
+}
+
 std::size_t CellIndex::arena_bytes(std::size_t max_keys) noexcept {
   return std::bit_ceil(std::max<std::size_t>(2 * max_keys, 64)) * sizeof(Slot) + 64;
 }
@@ -80,7 +99,6 @@ void VoxelGrid::init(Arena& arena, double voxel_size_m, std::size_t max_voxels,
   shift_ = 64u - static_cast<std::uint32_t>(std::countr_zero(slots));
   mask_ = slots - 1;
   table_ = arena.allocate_array<VoxelSums>(slots, "planes.voxel_grid");
-  slots_in_use_ = arena.allocate_array<std::uint32_t>(max_voxels, "planes.voxel_grid");
   voxels_ = arena.allocate_array<Voxel>(max_voxels, "planes.voxel_grid");
   // At most one block per voxel.
   const std::size_t blocks = max_blocks == 0 ? max_voxels : std::min(max_blocks, max_voxels);
@@ -93,6 +111,7 @@ void VoxelGrid::init(Arena& arena, double voxel_size_m, std::size_t max_voxels,
   centred_sums_ = arena.allocate_array<CentredSums>(max_voxels, "planes.voxel_grid");
   block_sums_ = arena.allocate_array<CentredSums>(blocks, "planes.voxel_grid");
   block_summed_ = arena.allocate_array<std::uint8_t>(blocks, "planes.voxel_grid");
+  free_blocks_ = arena.allocate_array<std::uint32_t>(blocks, "planes.voxel_grid");
   slot_count_ = 0;
   clear();
 }
@@ -100,6 +119,7 @@ void VoxelGrid::init(Arena& arena, double voxel_size_m, std::size_t max_voxels,
 void VoxelGrid::keep_shapes(Arena& arena) {
   const std::size_t max_voxels = voxels_.size();
   serial_of_slot_ = arena.allocate_array<std::uint32_t>(table_.size(), "planes.kept_shapes");
+  free_serials_ = arena.allocate_array<std::uint32_t>(max_voxels, "planes.kept_shapes");
   dense_serial_ = arena.allocate_array<std::uint32_t>(max_voxels, "planes.kept_shapes");
   kept_ = arena.allocate_array<KeptShape>(max_voxels, "planes.kept_shapes");
   block_flags_ = arena.allocate_array<std::uint8_t>(block_keys_.size(), "planes.kept_shapes");
@@ -112,17 +132,17 @@ std::size_t VoxelGrid::shape_cache_bytes(std::size_t max_voxels, std::size_t max
   const std::size_t blocks = max_blocks == 0 ? max_voxels : max_blocks;
   const std::size_t slots = std::bit_ceil(std::max<std::size_t>(2 * max_voxels, 64));
   constexpr std::size_t kAlignment = 64;  // per allocation, at most
-  return slots * sizeof(std::uint32_t) + max_voxels * (sizeof(std::uint32_t) + sizeof(KeptShape)) +
-         blocks * (sizeof(std::uint8_t) + sizeof(CoarseSpread)) + 5 * kAlignment;
+  return slots * sizeof(std::uint32_t) +
+         max_voxels * (2 * sizeof(std::uint32_t) + sizeof(KeptShape)) +
+         blocks * (sizeof(std::uint8_t) + sizeof(CoarseSpread)) + 6 * kAlignment;
 }
 
 std::size_t VoxelGrid::arena_bytes(std::size_t max_voxels, std::size_t max_blocks) noexcept {
   const std::size_t blocks = max_blocks == 0 ? max_voxels : max_blocks;
   const std::size_t slots = std::bit_ceil(std::max<std::size_t>(2 * max_voxels, 64));
   constexpr std::size_t kAlignment = 64;  // per allocation, at most
-  return slots * sizeof(VoxelSums) +
-         max_voxels * (sizeof(std::uint32_t) + sizeof(Voxel) + sizeof(CentredSums)) +
-         blocks * (sizeof(CellKey) + 2 * sizeof(std::uint64_t) + sizeof(std::uint32_t) +
+  return slots * sizeof(VoxelSums) + max_voxels * (sizeof(Voxel) + sizeof(CentredSums)) +
+         blocks * (sizeof(CellKey) + 2 * sizeof(std::uint64_t) + 2 * sizeof(std::uint32_t) +
                    sizeof(BlockOrder) + sizeof(CentredSums) + sizeof(std::uint8_t)) +
          CellIndex::arena_bytes(blocks) + 11 * kAlignment;
 }
@@ -150,21 +170,16 @@ void VoxelGrid::clear() noexcept {
   for (std::size_t block = 0; keeping_shapes_ && block < block_count_; ++block) {
     kept_coarse_[block].known = false;
   }
-  // Few voxels in a large table: empty just their slots. Linear probing stays consistent
-  // when keys are removed newest first.
-  if (slot_count_ * 8 < table_.size()) {
-    for (std::size_t i = slot_count_; i-- > 0;) {
-      table_[slots_in_use_[i]].key = kNoCell;
-    }
-  } else {
-    for (VoxelSums& slot : table_) {
-      slot.key = kNoCell;
-    }
+  for (VoxelSums& slot : table_) {
+    slot.key = kNoCell;
   }
   slot_count_ = 0;
+  free_serial_count_ = 0;
+  next_serial_ = 0;
   count_ = 0;
   block_index_.clear();
   block_count_ = 0;
+  free_block_count_ = 0;
   last_index_ = CellIndex::kAbsent;
   counters_ = Counters{};
 }
@@ -189,15 +204,17 @@ std::uint32_t VoxelGrid::find_or_create(CellKey key) noexcept {
     }
     if (voxel.key == kNoCell) {
       const auto cell = unpack_cell(key);
-      if (slot_count_ == slots_in_use_.size() || !mark_in_block(cell.x(), cell.y(), cell.z())) {
+      if (slot_count_ == voxels_.size() || !mark_in_block(cell.x(), cell.y(), cell.z())) {
         return CellIndex::kAbsent;
       }
       voxel = VoxelSums{.key = key};
       if (keeping_shapes_) {
-        serial_of_slot_[slot] = static_cast<std::uint32_t>(slot_count_);
-        kept_[slot_count_].valid = false;
+        const std::uint32_t serial =
+            free_serial_count_ > 0 ? free_serials_[--free_serial_count_] : next_serial_++;
+        serial_of_slot_[slot] = serial;
+        kept_[serial].valid = false;
       }
-      slots_in_use_[slot_count_++] = static_cast<std::uint32_t>(slot);
+      ++slot_count_;
       return static_cast<std::uint32_t>(slot);
     }
   }
@@ -206,25 +223,68 @@ std::uint32_t VoxelGrid::find_or_create(CellKey key) noexcept {
 bool VoxelGrid::mark_in_block(std::int64_t x, std::int64_t y, std::int64_t z) noexcept {
   std::uint32_t block = 0;
   const CellKey key = block_of_cell(x, y, z);
-  if (block_count_ == block_keys_.size()) {
+  const bool reuse = free_block_count_ > 0;
+  const auto fresh =
+      reuse ? free_blocks_[free_block_count_ - 1] : static_cast<std::uint32_t>(block_count_);
+  if (!reuse && block_count_ == block_keys_.size()) {
     // Full: only a block that exists already can take the cell.
     block = block_index_.find(key);
     if (block == CellIndex::kAbsent) {
       return false;
     }
-  } else if (block_index_.find_or_insert(key, static_cast<std::uint32_t>(block_count_), block) &&
-             block == block_count_) {
-    block_keys_[block_count_] = key;
-    block_masks_[block_count_] = 0;
-    live_masks_[block_count_] = 0;
-    block_first_[block_count_] = 0;
-    ++block_count_;
+  } else if (block_index_.find_or_insert(key, fresh, block) && block == fresh) {
+    if (reuse) {
+      --free_block_count_;
+    } else {
+      ++block_count_;
+    }
+    block_keys_[block] = key;
+    block_masks_[block] = 0;
+    live_masks_[block] = 0;
+    block_first_[block] = 0;
+    if (keeping_shapes_) {
+      kept_coarse_[block].known = false;
+    }
   }
   block_masks_[block] |= std::uint64_t{1} << bit_in_block(x, y, z);
   if (keeping_shapes_) {
     block_flags_[block] = kChanged;  // a new cell (and a new block is all new)
   }
   return true;
+}
+
+void VoxelGrid::unmark_in_block(CellKey key) noexcept {
+  const auto cell = unpack_cell(key);
+  const CellKey block_key = block_of_cell(cell.x(), cell.y(), cell.z());
+  const std::uint32_t block = block_index_.find(block_key);
+  if (block == CellIndex::kAbsent) {
+    return;
+  }
+  block_masks_[block] &= ~(std::uint64_t{1} << bit_in_block(cell.x(), cell.y(), cell.z()));
+  if (keeping_shapes_) {
+    block_flags_[block] |= kChanged;
+  }
+  if (block_masks_[block] != 0) {
+    return;
+  }
+  // Empty: its index serves the next new block. The blocks around it are stale now, while
+  // its key still says where it was.
+  if (keeping_shapes_) {
+    const auto b = unpack_cell(block_key);
+    for (std::int64_t dx = -1; dx <= 1; ++dx) {
+      for (std::int64_t dy = -1; dy <= 1; ++dy) {
+        for (std::int64_t dz = -1; dz <= 1; ++dz) {
+          const std::uint32_t near =
+              block_index_.find(pack_cell(b.x() + dx, b.y() + dy, b.z() + dz));
+          if (near != CellIndex::kAbsent) {
+            block_flags_[near] |= kStale;
+          }
+        }
+      }
+    }
+  }
+  block_index_.erase(block_key);
+  free_blocks_[free_block_count_++] = block;
 }
 
 void VoxelGrid::mark_changed(CellKey block_key) noexcept {
@@ -507,6 +567,30 @@ void VoxelGrid::set_sums(const VoxelSums& sums) noexcept {
   counters_.points_added += sums.point_count - std::min(sums.point_count, voxel.point_count);
   voxel = sums;
   sums_changed(sums.key);
+}
+
+void VoxelGrid::erase(CellKey key) noexcept {
+  const std::uint32_t slot = find(key);
+  if (slot == CellIndex::kAbsent) {
+    return;
+  }
+  counters_.points_erased += table_[slot].point_count;
+  if (keeping_shapes_) {
+    free_serials_[free_serial_count_++] = serial_of_slot_[slot];
+  }
+  erase_shifting_back(
+      slot, mask_, [this](std::size_t at) { return table_[at].key != kNoCell; },
+      [this](std::size_t at) { return home_slot(table_[at].key); },
+      [this](std::size_t from, std::size_t to) {
+        table_[to] = table_[from];
+        if (keeping_shapes_) {
+          serial_of_slot_[to] = serial_of_slot_[from];
+        }
+      },
+      [this](std::size_t at) { table_[at].key = kNoCell; });
+  --slot_count_;
+  last_index_ = CellIndex::kAbsent;
+  unmark_in_block(key);
 }
 
 void VoxelGrid::remove_point(const Eigen::Vector3f& point_m) noexcept {

@@ -41,6 +41,7 @@ struct MapperRun {
   MapperCounters counters;
   map::PlaneRegistryCounters registry;
   std::size_t peak_samples = 0;
+  std::uint64_t tiles_evicted = 0;
 };
 
 MapperRun map_world(const std::string& world, PoseSource poses, double duration_s = kDurationS,
@@ -99,6 +100,7 @@ MapperRun map_world(const std::string& world, PoseSource poses, double duration_
   run.counters = mapper->counters();
   run.registry = mapper->registry().counters();
   run.peak_samples = mapper->window().counters().peak_samples;
+  run.tiles_evicted = mapper->window().counters().tiles_evicted;
   return run;
 }
 
@@ -194,10 +196,11 @@ TEST(MapperSim, UscBlockWithTruePosesFindsTheFaces) {
   EXPECT_EQ(run.counters.messages_late, 0u);
 }
 
-// The same run twice gives the same bytes. And between evictions the detector keeps the
-// window's samples and their shapes, and takes only the samples that gained points: the shapes
-// it keeps are the ones it would estimate again, so the stream is also the same, byte for
-// byte, as with every window detected afresh (incremental_extraction off).
+// The same run twice gives the same bytes. And the detector keeps the window's samples, their
+// shapes and its sections' results: it takes only the samples that gained points, lets go of
+// those whose tile left, and replays every section whose inputs are as they were. What it
+// keeps is what it would find again, so the stream is also the same, byte for byte, as with
+// every window detected afresh (incremental_extraction off).
 TEST(MapperSim, TheSameRunGivesTheSameStreamWithOrWithoutKeptShapes) {
   const MapperRun a = map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS);
   const MapperRun b = map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS);
@@ -206,8 +209,11 @@ TEST(MapperSim, TheSameRunGivesTheSameStreamWithOrWithoutKeptShapes) {
   EXPECT_TRUE(a.stream == b.stream) << "the plane stream's bytes differ";
   const MapperRun afresh =
       map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS, false);
-  EXPECT_GT(a.counters.incremental_extractions, a.counters.extractions / 2);
+  EXPECT_EQ(a.counters.incremental_extractions, a.counters.extractions - 1) << "all but the first";
+  EXPECT_GT(a.tiles_evicted, 0u);
+  EXPECT_GT(a.counters.sections_replayed, a.counters.sections_searched / 2);
   EXPECT_EQ(afresh.counters.incremental_extractions, 0u);
+  EXPECT_EQ(afresh.counters.sections_replayed, 0u);
   ASSERT_EQ(a.stream.size(), afresh.stream.size());
   EXPECT_TRUE(a.stream == afresh.stream) << "the kept shapes changed the stream";
 }

@@ -594,6 +594,91 @@ TEST(VoxelGrid, KeptShapesAreTheShapesOfAGridBuiltAfresh) {
   }
 }
 
+// Erased samples (a tile left the mapper's window): the grid that kept its shapes and let the
+// samples go, then took new ones into the freed slots and blocks, holds exactly what a grid
+// built afresh from the samples that remain holds, shape for shape.
+TEST(VoxelGrid, ErasedSamplesLeaveTheGridOfTheSamplesThatRemain) {
+  constexpr std::size_t kSamples = std::size_t{1} << 16;
+  const auto sums_of = [](std::span<const Eigen::Vector3f> points) {
+    Arena arena(VoxelGrid::arena_bytes(kSamples));
+    VoxelGrid grid;
+    grid.init(arena, 0.2, kSamples);
+    grid.add_points(points);
+    grid.compact();
+    return std::vector<VoxelSums>(grid.voxels().begin(), grid.voxels().end());
+  };
+  const std::vector<VoxelSums> before = sums_of(floor_and_blurred_wall_band(0.03f, 11));
+  // What leaves: the floor beyond x = 30 m (whole blocks), and every seventh sample of the
+  // wall's first 2 m.
+  std::vector<VoxelSums> remaining;
+  std::vector<CellKey> erased;
+  std::uint64_t erased_points = 0;
+  for (std::size_t i = 0; i < before.size(); ++i) {
+    const auto cell = unpack_cell(before[i].key);  // in 0.2 m cells
+    if (cell.x() >= 150 || (cell.x() < 10 && cell.y() < 10 && i % 7 == 0)) {
+      erased.push_back(before[i].key);
+      erased_points += before[i].point_count;
+    } else {
+      remaining.push_back(before[i]);
+    }
+  }
+  // What comes: a patch of floor far away, in new blocks.
+  std::mt19937 random(3);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  std::vector<Eigen::Vector3f> patch;
+  for (int i = 0; i < 5000; ++i) {
+    patch.emplace_back(-40.0f + 6.0f * unit(random), 6.0f * unit(random), 0.01f * unit(random));
+  }
+  const std::vector<VoxelSums> added = sums_of(patch);
+  remaining.insert(remaining.end(), added.begin(), added.end());
+
+  Arena arena(VoxelGrid::arena_bytes(kSamples) + VoxelGrid::shape_cache_bytes(kSamples));
+  VoxelGrid kept;
+  kept.init(arena, 0.2, kSamples);
+  kept.keep_shapes(arena);
+  for (const VoxelSums& sums : before) {
+    kept.add_sums(sums);
+  }
+  kept.compact();
+  kept.estimate_shapes(ShapeOptions{});
+  const std::size_t blocks_before = kept.block_count();
+  for (const CellKey key : erased) {
+    kept.erase(key);
+  }
+  kept.erase(pack_cell(1000, 1000, 1000));  // never there: nothing happens
+  for (const VoxelSums& sums : added) {
+    kept.add_sums(sums);
+  }
+  kept.compact();
+  kept.estimate_shapes(ShapeOptions{});
+  EXPECT_LE(kept.block_count(), blocks_before + 8) << "new blocks take the erased ones' places";
+
+  Arena fresh_arena(VoxelGrid::arena_bytes(kSamples));
+  VoxelGrid fresh;
+  fresh.init(fresh_arena, 0.2, kSamples);
+  for (const VoxelSums& sums : remaining) {
+    fresh.add_sums(sums);
+  }
+  fresh.compact();
+  fresh.estimate_shapes(ShapeOptions{});
+
+  ASSERT_EQ(kept.size(), fresh.size());
+  EXPECT_GT(kept.shapes_reused(), 0u);
+  EXPECT_EQ(kept.surface_noise_m(), fresh.surface_noise_m());
+  for (std::size_t i = 0; i < kept.size(); ++i) {
+    const Voxel& a = kept.voxels()[i];
+    const Voxel& b = fresh.voxels()[i];
+    ASSERT_EQ(a.key, b.key) << "sample " << i;
+    EXPECT_EQ(a.point_count, b.point_count) << "sample " << i;
+    EXPECT_EQ(a.shape, b.shape) << "sample " << i;
+    EXPECT_EQ(a.axis, b.axis) << "sample " << i;
+  }
+  for (const CellKey key : erased) {
+    kept.erase(key);  // gone already: nothing happens
+  }
+  EXPECT_EQ(kept.counters().points_erased, erased_points);
+}
+
 // The samples of some points, as the mapper's window hands them to the detector.
 std::vector<VoxelSums> samples_of(std::span<const Eigen::Vector3f> points) {
   constexpr std::size_t kSamples = std::size_t{1} << 17;
@@ -673,7 +758,28 @@ TEST(PlaneDetector, KeptSectionsGiveThePlanesOfADetectionAfresh) {
   EXPECT_GT(stats.sections_replayed, stats.sections_searched / 4);
   EXPECT_LT(stats.sections_replayed, stats.sections_searched) << "the new room was searched";
 
-  // Started over (a tile left the window): nothing kept is valid, the planes are the same.
+  // A tile leaves: the blurred wall's samples go, and the rest is as a detection afresh.
+  std::vector<VoxelSums> left;
+  for (const VoxelSums& sample : after) {
+    if (unpack_cell(sample.key).x() >= 60) {  // 12 m of 0.2 m samples
+      kept.detector.remove_sample(sample.key);
+    } else {
+      left.push_back(sample);
+    }
+  }
+  const std::vector<msg::PlanePatch> kept_after_leaving = [&] {
+    const auto planes = kept.detector.detect();
+    return std::vector<msg::PlanePatch>(planes.begin(), planes.end());
+  }();
+  EXPECT_GT(kept.detector.stats().sections_replayed, kept.detector.stats().sections_searched / 2);
+  DetectorFixture fresh_after_leaving(config);
+  for (const VoxelSums& sample : left) {
+    fresh_after_leaving.detector.add_sample(sample);
+  }
+  expect_same_planes(kept_after_leaving, fresh_after_leaving.detector.detect());
+  EXPECT_EQ(kept_after_leaving.size(), fresh_planes.size() - 1) << "the blurred wall left";
+
+  // Started over: nothing kept is valid, the planes are the same.
   kept.detector.clear();
   for (const VoxelSums& sample : after) {
     kept.detector.add_sample(sample);

@@ -233,7 +233,19 @@ class Mapper {
   void extract(TimestampNs stamp_ns) noexcept;
   void refit_buildings() noexcept;
 
+  // A tile leaving the window: the registry freezes what it held of its planes, and its
+  // samples leave the detector's kept grid, which then goes on instead of starting over.
+  class TileLeaving final : public map::VoxelWindow::EvictionSink {
+   public:
+    explicit TileLeaving(Mapper& mapper) noexcept : mapper_(&mapper) {}
+    void on_evicted(const map::VoxelWindow::EvictedTile& tile) noexcept override;
+
+   private:
+    Mapper* mapper_;
+  };
+
   MapperConfig config_;
+  TileLeaving tile_leaving_{*this};
   localize::Localizer localizer_;
   std::array<map::ScanProjector, kMaxLasers> projectors_{
       map::ScanProjector({}, {}), map::ScanProjector({}, {}), map::ScanProjector({}, {}),
@@ -276,7 +288,6 @@ class Mapper {
 
   bool extraction_scheduled_ = false;
   bool extracted_before_ = false;
-  std::uint64_t tiles_evicted_at_extraction_ = 0;
   TimestampNs next_extraction_ns_ = 0;
   TimestampNs last_scan_ns_ = 0;
   bool ending_ = false;

@@ -63,6 +63,8 @@ class PlaneDetector {
   // A sample as it is now (keep_shapes: the next detect() estimates shapes again only around
   // the samples set or added since the last one).
   void set_sample(const VoxelSums& sample) noexcept { voxels_.set_sums(sample); }
+  // A sample gone with all its points (a tile left the window).
+  void remove_sample(CellKey key) noexcept { voxels_.erase(key); }
 
   // Planes known not to be surfaces (a laser's scan plane), dropped by the next detect()s.
   void set_exclusions(std::span<const PlaneExclusion> exclusions) noexcept;

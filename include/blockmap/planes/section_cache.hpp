@@ -11,7 +11,8 @@
 //
 // Which section took a sample is kept per cell of each block, as the block's offset in that
 // section (a nibble: sections of 2 x 2 x 2 blocks at most). Block indices are the voxel
-// grid's, stable until it is cleared; invalidate() forgets everything then.
+// grid's, stable until it is cleared (invalidate() forgets everything then) or the block is
+// erased; an index that holds another block, or none, starts with nothing taken.
 #pragma once
 
 #include <cstdint>
@@ -89,8 +90,10 @@ class SectionCache {
  private:
   [[nodiscard]] static std::uint32_t offset_code(CellKey section, CellKey block_key) noexcept;
   [[nodiscard]] std::uint64_t sign_block(const VoxelGrid& grid, std::uint32_t block) const noexcept;
+  void forget_block(std::uint32_t block) noexcept;
 
   std::span<std::uint64_t> block_signatures_;
+  std::span<CellKey> block_keys_;         // per block index: the block it held last time
   std::span<std::uint64_t> taken_cells_;  // per block: cells taken so far in this detection
   std::span<std::uint64_t> taken_codes_;  // per block: 64 nibbles (4 words), the taker's offset
   std::span<Entry> entries_[2];

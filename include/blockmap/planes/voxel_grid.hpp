@@ -64,6 +64,8 @@ class CellIndex {
   [[nodiscard]] std::uint32_t find(CellKey key) const noexcept;
   // The slot of `key`, inserting it with `value` when absent; false when full.
   bool find_or_insert(CellKey key, std::uint32_t value, std::uint32_t& found) noexcept;
+  // Takes `key` out (nothing when absent).
+  void erase(CellKey key) noexcept;
   [[nodiscard]] std::size_t size() const noexcept { return size_; }
   [[nodiscard]] std::size_t memory_bytes() const noexcept { return slots_.size_bytes(); }
   // Bytes init() takes from the arena for `max_keys`.
@@ -174,6 +176,7 @@ class VoxelGrid {
     std::uint64_t points_dropped_full = 0;   // the voxel was new and the grid full
     std::uint64_t points_dropped_range = 0;  // beyond the packed key range
     std::uint64_t points_dropped_nonfinite = 0;
+    std::uint64_t points_erased = 0;  // with their voxels (erase())
   };
   // The samples of one block: voxels()[first, first + count).
   struct BlockRange {
@@ -193,6 +196,10 @@ class VoxelGrid {
   void add_sums(const VoxelSums& sums) noexcept;
   // Sets a voxel's sums to what they are now elsewhere (the mapper's window), creating it.
   void set_sums(const VoxelSums& sums) noexcept;
+  // Takes a voxel out with all its points (a tile left the mapper's window); nothing when it
+  // is not there. Its slot, and its block when that empties, serve new voxels; with kept
+  // shapes, the blocks around it are estimated again.
+  void erase(CellKey key) noexcept;
 
   // Shapes kept from one estimate_shapes() to the next, until clear(): the next estimates
   // again only the blocks within one block of a block whose samples changed (new, or through
@@ -258,9 +265,9 @@ class VoxelGrid {
     return table_.size_bytes() + voxels_.size_bytes() + block_index_.memory_bytes() +
            block_keys_.size_bytes() + block_masks_.size_bytes() + live_masks_.size_bytes() +
            block_first_.size_bytes() + block_order_.size_bytes() + centred_sums_.size_bytes() +
-           block_sums_.size_bytes() + block_summed_.size_bytes() + serial_of_slot_.size_bytes() +
-           dense_serial_.size_bytes() + kept_.size_bytes() + block_flags_.size_bytes() +
-           kept_coarse_.size_bytes();
+           block_sums_.size_bytes() + block_summed_.size_bytes() + free_blocks_.size_bytes() +
+           serial_of_slot_.size_bytes() + free_serials_.size_bytes() + dense_serial_.size_bytes() +
+           kept_.size_bytes() + block_flags_.size_bytes() + kept_coarse_.size_bytes();
   }
   // Bytes init() takes from the arena for `max_voxels`.
   [[nodiscard]] static std::size_t arena_bytes(std::size_t max_voxels,
@@ -294,6 +301,8 @@ class VoxelGrid {
   }
   // Marks the cell in its block, creating the block; false when that needs one too many.
   bool mark_in_block(std::int64_t x, std::int64_t y, std::int64_t z) noexcept;
+  // Unmarks an erased cell; a block left empty is erased too.
+  void unmark_in_block(CellKey key) noexcept;
   // The live masks and first sample ids of the 27 blocks around one block (index
   // (dx + 1) * 9 + (dy + 1) * 3 + dz + 1): a neighbour's id is a bit count away.
   struct BlockNeighbourhood {
@@ -354,10 +363,9 @@ class VoxelGrid {
   float size_m_ = 0.0f;
   CellKey last_key_ = 0;
   std::uint32_t last_index_ = CellIndex::kAbsent;
-  std::span<VoxelSums> table_;             // open addressing, linear probing, at most half full
-  std::span<std::uint32_t> slots_in_use_;  // the table's used slots, newest last
-  std::size_t slot_count_ = 0;
-  std::span<Voxel> voxels_;  // dense, block by block (compact())
+  std::span<VoxelSums> table_;  // open addressing, linear probing, at most half full
+  std::size_t slot_count_ = 0;  // voxels in the table
+  std::span<Voxel> voxels_;     // dense, block by block (compact())
   std::size_t count_ = 0;
   // Blocks: their keys in first-touch order, which cells were touched, which hold points at
   // the last compact(), and the id of their first sample.
@@ -374,9 +382,13 @@ class VoxelGrid {
   std::span<CentredSums> centred_sums_;   // per sample, about its block's centre (compact())
   std::span<CentredSums> block_sums_;     // per block, when a coarse look needs it
   std::span<std::uint8_t> block_summed_;  // 1: block_sums_ holds the block's sums
-  // Kept shapes (keep_shapes()): each voxel's serial (its order of creation since clear(),
-  // which compact() does not change), by table slot and by dense id; the fine shape of each
-  // serial; per block, kChanged and kStale.
+  // Indices of erased blocks, for new ones (an erased block stays in the index range with no
+  // cells until then).
+  std::span<std::uint32_t> free_blocks_;
+  std::size_t free_block_count_ = 0;
+  // Kept shapes (keep_shapes()): each voxel's serial (given at creation, taken back by
+  // erase(); compact() does not change it), by table slot and by dense id; the fine shape of
+  // each serial; per block, kChanged and kStale.
   struct KeptShape {
     Eigen::Vector3f axis = Eigen::Vector3f::UnitZ();
     float thickness_m = 0.0f;
@@ -387,6 +399,9 @@ class VoxelGrid {
   static constexpr std::uint8_t kStale = 2;
   bool keeping_shapes_ = false;
   std::span<std::uint32_t> serial_of_slot_;
+  std::span<std::uint32_t> free_serials_;  // serials of erased voxels, for new ones
+  std::size_t free_serial_count_ = 0;
+  std::uint32_t next_serial_ = 0;
   std::span<std::uint32_t> dense_serial_;
   std::span<KeptShape> kept_;
   std::span<std::uint8_t> block_flags_;
