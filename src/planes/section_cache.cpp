@@ -104,7 +104,7 @@ void SectionCache::invalidate() noexcept {
 }
 
 std::uint32_t SectionCache::offset_code(CellKey section, CellKey block_key) noexcept {
-  const auto offset = unpack_cell(block_key) - unpack_cell(section);
+  const Eigen::Matrix<std::int64_t, 3, 1> offset = unpack_cell(block_key) - unpack_cell(section);
   return static_cast<std::uint32_t>(offset.x() * 4 + offset.y() * 2 + offset.z()) + 1;
 }
 
