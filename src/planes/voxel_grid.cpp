@@ -270,18 +270,7 @@ void VoxelGrid::unmark_in_block(CellKey key) noexcept {
   // Empty: its index serves the next new block. The blocks around it are stale now, while
   // its key still says where it was.
   if (keeping_shapes_) {
-    const auto b = unpack_cell(block_key);
-    for (std::int64_t dx = -1; dx <= 1; ++dx) {
-      for (std::int64_t dy = -1; dy <= 1; ++dy) {
-        for (std::int64_t dz = -1; dz <= 1; ++dz) {
-          const std::uint32_t near =
-              block_index_.find(pack_cell(b.x() + dx, b.y() + dy, b.z() + dz));
-          if (near != CellIndex::kAbsent) {
-            block_flags_[near] |= kStale;
-          }
-        }
-      }
-    }
+    mark_stale_around(block_key);
   }
   block_index_.erase(block_key);
   free_blocks_[free_block_count_++] = block;
@@ -734,23 +723,26 @@ void VoxelGrid::take_coarse_look(const ShapeOptions& options, ShapeLimits limits
   }
 }
 
+void VoxelGrid::mark_stale_around(CellKey block_key) noexcept {
+  const auto b = unpack_cell(block_key);
+  for (std::int64_t dx = -1; dx <= 1; ++dx) {
+    for (std::int64_t dy = -1; dy <= 1; ++dy) {
+      for (std::int64_t dz = -1; dz <= 1; ++dz) {
+        const std::uint32_t near = block_index_.find(pack_cell(b.x() + dx, b.y() + dy, b.z() + dz));
+        if (near != CellIndex::kAbsent) {
+          block_flags_[near] |= kStale;
+        }
+      }
+    }
+  }
+}
+
 void VoxelGrid::mark_stale_blocks() noexcept {
   for (std::size_t block = 0; block < block_count_; ++block) {
     if ((block_flags_[block] & kChanged) == 0) {
       continue;
     }
-    const auto b = unpack_cell(block_keys_[block]);
-    for (std::int64_t dx = -1; dx <= 1; ++dx) {
-      for (std::int64_t dy = -1; dy <= 1; ++dy) {
-        for (std::int64_t dz = -1; dz <= 1; ++dz) {
-          const std::uint32_t near =
-              block_index_.find(pack_cell(b.x() + dx, b.y() + dy, b.z() + dz));
-          if (near != CellIndex::kAbsent) {
-            block_flags_[near] |= kStale;
-          }
-        }
-      }
-    }
+    mark_stale_around(block_keys_[block]);
   }
 }
 

@@ -530,24 +530,26 @@ TEST(VoxelGrid, ABlurredWallBandIsASurfaceOnlyInACloudBlurredAsMuch) {
   EXPECT_LT(crisp.wall_planar, crisp.wall_samples / 10);
 }
 
+// The samples of some points, as the mapper's window hands them to the detector.
+std::vector<VoxelSums> samples_of(std::span<const Eigen::Vector3f> points) {
+  constexpr std::size_t kSamples = std::size_t{1} << 17;
+  Arena arena(VoxelGrid::arena_bytes(kSamples));
+  VoxelGrid grid;
+  grid.init(arena, PlanesConfig{}.sample_size_m, kSamples);
+  grid.add_points(points);
+  grid.compact();
+  return {grid.voxels().begin(), grid.voxels().end()};
+}
+
 // Kept shapes: after some samples change (set_sums) and some are new (add_sums), the shapes
 // that estimate_shapes() keeps and the ones it estimates again are exactly those of a grid
 // built afresh from the same sums.
 TEST(VoxelGrid, KeptShapesAreTheShapesOfAGridBuiltAfresh) {
   constexpr std::size_t kSamples = std::size_t{1} << 16;
-  const auto sums_of = [](std::span<const Eigen::Vector3f> points) {
-    Arena arena(VoxelGrid::arena_bytes(kSamples));
-    VoxelGrid grid;
-    grid.init(arena, 0.2, kSamples);
-    grid.add_points(points);
-    grid.compact();
-    std::vector<VoxelSums> sums(grid.voxels().begin(), grid.voxels().end());
-    return sums;
-  };
   // Before: the floor and wall band. After: more points on part of the wall (changed
   // samples) and a new patch of floor far from it (new samples, new blocks).
   std::vector<Eigen::Vector3f> points = floor_and_blurred_wall_band(0.03f, 11);
-  const std::vector<VoxelSums> before = sums_of(points);
+  const std::vector<VoxelSums> before = samples_of(points);
   std::mt19937 rng(12);
   std::uniform_real_distribution<float> unit(0.0f, 1.0f);
   std::normal_distribution<float> noise(0.0f, 0.1f);
@@ -555,7 +557,7 @@ TEST(VoxelGrid, KeptShapesAreTheShapesOfAGridBuiltAfresh) {
     points.emplace_back(noise(rng), 3.0f * unit(rng), 0.3f + unit(rng));
     points.emplace_back(50.0f + 5.0f * unit(rng), 50.0f + 5.0f * unit(rng), 0.01f * noise(rng));
   }
-  const std::vector<VoxelSums> after = sums_of(points);
+  const std::vector<VoxelSums> after = samples_of(points);
 
   Arena arena(VoxelGrid::arena_bytes(kSamples) + VoxelGrid::shape_cache_bytes(kSamples));
   VoxelGrid kept;
@@ -599,15 +601,7 @@ TEST(VoxelGrid, KeptShapesAreTheShapesOfAGridBuiltAfresh) {
 // built afresh from the samples that remain holds, shape for shape.
 TEST(VoxelGrid, ErasedSamplesLeaveTheGridOfTheSamplesThatRemain) {
   constexpr std::size_t kSamples = std::size_t{1} << 16;
-  const auto sums_of = [](std::span<const Eigen::Vector3f> points) {
-    Arena arena(VoxelGrid::arena_bytes(kSamples));
-    VoxelGrid grid;
-    grid.init(arena, 0.2, kSamples);
-    grid.add_points(points);
-    grid.compact();
-    return std::vector<VoxelSums>(grid.voxels().begin(), grid.voxels().end());
-  };
-  const std::vector<VoxelSums> before = sums_of(floor_and_blurred_wall_band(0.03f, 11));
+  const std::vector<VoxelSums> before = samples_of(floor_and_blurred_wall_band(0.03f, 11));
   // What leaves: the floor beyond x = 30 m (whole blocks), and every seventh sample of the
   // wall's first 2 m.
   std::vector<VoxelSums> remaining;
@@ -629,7 +623,7 @@ TEST(VoxelGrid, ErasedSamplesLeaveTheGridOfTheSamplesThatRemain) {
   for (int i = 0; i < 5000; ++i) {
     patch.emplace_back(-40.0f + 6.0f * unit(random), 6.0f * unit(random), 0.01f * unit(random));
   }
-  const std::vector<VoxelSums> added = sums_of(patch);
+  const std::vector<VoxelSums> added = samples_of(patch);
   remaining.insert(remaining.end(), added.begin(), added.end());
 
   Arena arena(VoxelGrid::arena_bytes(kSamples) + VoxelGrid::shape_cache_bytes(kSamples));
@@ -677,17 +671,6 @@ TEST(VoxelGrid, ErasedSamplesLeaveTheGridOfTheSamplesThatRemain) {
     kept.erase(key);  // gone already: nothing happens
   }
   EXPECT_EQ(kept.counters().points_erased, erased_points);
-}
-
-// The samples of some points, as the mapper's window hands them to the detector.
-std::vector<VoxelSums> samples_of(std::span<const Eigen::Vector3f> points) {
-  constexpr std::size_t kSamples = std::size_t{1} << 17;
-  Arena arena(VoxelGrid::arena_bytes(kSamples));
-  VoxelGrid grid;
-  grid.init(arena, PlanesConfig{}.sample_size_m, kSamples);
-  grid.add_points(points);
-  grid.compact();
-  return {grid.voxels().begin(), grid.voxels().end()};
 }
 
 void expect_same_planes(std::span<const msg::PlanePatch> a, std::span<const msg::PlanePatch> b) {

@@ -322,6 +322,8 @@ class VoxelGrid {
   };
   // With kept shapes: the blocks within one block of a changed block are marked stale.
   void mark_stale_blocks() noexcept;
+  // The block with this key and the 26 around it (those that exist) are stale.
+  void mark_stale_around(CellKey block_key) noexcept;
   void mark_changed(CellKey block_key) noexcept;
   // The slot for sums.key, created when new; kAbsent, its points counted as dropped, when
   // the key is out of range or the grid full.
