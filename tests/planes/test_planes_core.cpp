@@ -619,8 +619,10 @@ TEST(VoxelGrid, ErasedSamplesLeaveTheGridOfTheSamplesThatRemain) {
   // What comes: a patch of floor far away, in new blocks.
   std::mt19937 random(3);
   std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  constexpr int kPatchPoints = 5000;
   std::vector<Eigen::Vector3f> patch;
-  for (int i = 0; i < 5000; ++i) {
+  patch.reserve(kPatchPoints);
+  for (int i = 0; i < kPatchPoints; ++i) {
     patch.emplace_back(-40.0f + 6.0f * unit(random), 6.0f * unit(random), 0.01f * unit(random));
   }
   const std::vector<VoxelSums> added = samples_of(patch);
@@ -697,7 +699,7 @@ TEST(PlaneDetector, KeptSectionsGiveThePlanesOfADetectionAfresh) {
   // Before: a room with a bush, and a wall blurred by pose errors (coarse look) beside it.
   std::vector<Eigen::Vector3f> points = room_cloud(1, true);
   for (const Eigen::Vector3f& p : blurred_wall(0.05)) {
-    points.push_back(p + Eigen::Vector3f(15.0f, 0.0f, 0.0f));
+    points.emplace_back(p + Eigen::Vector3f(15.0f, 0.0f, 0.0f));
   }
   const std::vector<VoxelSums> before = samples_of(points);
   // After: more points on one wall of the room (changed samples) and a second room 30 m
@@ -708,7 +710,7 @@ TEST(PlaneDetector, KeptSectionsGiveThePlanesOfADetectionAfresh) {
     points.emplace_back(4.0f, -3.0f + 2.0f * unit(random), 3.0f * unit(random));
   }
   for (const Eigen::Vector3f& p : room_cloud(2, false)) {
-    points.push_back(p + Eigen::Vector3f(0.0f, 30.0f, 0.0f));
+    points.emplace_back(p + Eigen::Vector3f(0.0f, 30.0f, 0.0f));
   }
   const std::vector<VoxelSums> after = samples_of(points);
 
