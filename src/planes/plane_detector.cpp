@@ -65,6 +65,12 @@ std::uint32_t whole_ratio(double a, double b) {
   return static_cast<std::uint32_t>(std::lround(a / b));
 }
 
+// Sections are kept (SectionCache) with kept shapes, when they are small enough.
+bool keeps_sections(const PlanesConfig& config) noexcept {
+  return config.keep_shapes &&
+         SectionCache::supports(whole_ratio(config.section_size_m, config.section_stride_m));
+}
+
 }  // namespace
 
 void PlaneDetector::init(Arena& arena, const PlanesConfig& config) {
@@ -86,8 +92,7 @@ void PlaneDetector::init(Arena& arena, const PlanesConfig& config) {
   accumulator_.init(arena, orientations_, half_range_m, config.d_bin_m,
                     config.max_samples_per_section * 32);
   merger_.init(arena, config);
-  caching_ = config.keep_shapes &&
-             SectionCache::supports(whole_ratio(config.section_size_m, config.section_stride_m));
+  caching_ = keeps_sections(config);
   if (caching_) {
     cache_.init(arena, block_capacity(config), config.max_kept_sections, config.max_patches);
   }
@@ -116,12 +121,11 @@ std::size_t PlaneDetector::arena_budget_bytes(const PlanesConfig& config) noexce
       grid.rows * d_bins * sizeof(float) +
       static_cast<double>(config.max_samples_per_section) * 32 * sizeof(std::uint32_t);
   const auto merger = static_cast<double>(PlaneMerger::arena_bytes(config));
-  const bool caching = config.keep_shapes && SectionCache::supports(whole_ratio(
-                                                 config.section_size_m, config.section_stride_m));
-  const auto cache = static_cast<double>(
-      caching ? SectionCache::arena_bytes(block_capacity(config), config.max_kept_sections,
-                                          config.max_patches)
-              : 0);
+  const auto cache = static_cast<double>(keeps_sections(config)
+                                             ? SectionCache::arena_bytes(block_capacity(config),
+                                                                         config.max_kept_sections,
+                                                                         config.max_patches)
+                                             : 0);
   const double section = static_cast<double>(block_capacity(config)) * sizeof(std::uint32_t) +
                          static_cast<double>(config.max_samples_per_section) *
                              (2 * sizeof(std::uint32_t) + sizeof(Eigen::Vector3f)) +

@@ -541,6 +541,30 @@ std::vector<VoxelSums> samples_of(std::span<const Eigen::Vector3f> points) {
   return {grid.voxels().begin(), grid.voxels().end()};
 }
 
+// A grid built afresh from `sums` holds what `kept` holds, sample by sample: the same keys
+// and points, the same shapes and axes, the same surface noise.
+void expect_grid_built_afresh(const VoxelGrid& kept, std::span<const VoxelSums> sums,
+                              std::size_t capacity) {
+  Arena arena(VoxelGrid::arena_bytes(capacity));
+  VoxelGrid fresh;
+  fresh.init(arena, 0.2, capacity);
+  for (const VoxelSums& sample : sums) {
+    fresh.add_sums(sample);
+  }
+  fresh.compact();
+  fresh.estimate_shapes(ShapeOptions{});
+  ASSERT_EQ(kept.size(), fresh.size());
+  EXPECT_EQ(kept.surface_noise_m(), fresh.surface_noise_m());
+  for (std::size_t i = 0; i < kept.size(); ++i) {
+    const Voxel& a = kept.voxels()[i];
+    const Voxel& b = fresh.voxels()[i];
+    ASSERT_EQ(a.key, b.key) << "sample " << i;
+    EXPECT_EQ(a.point_count, b.point_count) << "sample " << i;
+    EXPECT_EQ(a.shape, b.shape) << "sample " << i;
+    EXPECT_EQ(a.axis, b.axis) << "sample " << i;
+  }
+}
+
 // Kept shapes: after some samples change (set_sums) and some are new (add_sums), the shapes
 // that estimate_shapes() keeps and the ones it estimates again are exactly those of a grid
 // built afresh from the same sums.
@@ -574,26 +598,9 @@ TEST(VoxelGrid, KeptShapesAreTheShapesOfAGridBuiltAfresh) {
   kept.compact();
   kept.estimate_shapes(ShapeOptions{});
 
-  Arena fresh_arena(VoxelGrid::arena_bytes(kSamples));
-  VoxelGrid fresh;
-  fresh.init(fresh_arena, 0.2, kSamples);
-  for (const VoxelSums& sums : after) {
-    fresh.add_sums(sums);
-  }
-  fresh.compact();
-  fresh.estimate_shapes(ShapeOptions{});
-
-  ASSERT_EQ(kept.size(), fresh.size());
   EXPECT_GT(kept.shapes_reused(), kept.size() / 2) << "most blocks did not change";
   EXPECT_LT(kept.shapes_reused(), kept.size());
-  EXPECT_EQ(kept.surface_noise_m(), fresh.surface_noise_m());
-  for (std::size_t i = 0; i < kept.size(); ++i) {
-    const Voxel& a = kept.voxels()[i];
-    const Voxel& b = fresh.voxels()[i];
-    ASSERT_EQ(a.key, b.key);
-    EXPECT_EQ(a.shape, b.shape) << "sample " << i;
-    EXPECT_EQ(a.axis, b.axis) << "sample " << i;
-  }
+  expect_grid_built_afresh(kept, after, kSamples);
 }
 
 // Erased samples (a tile left the mapper's window): the grid that kept its shapes and let the
@@ -649,26 +656,8 @@ TEST(VoxelGrid, ErasedSamplesLeaveTheGridOfTheSamplesThatRemain) {
   kept.estimate_shapes(ShapeOptions{});
   EXPECT_LE(kept.block_count(), blocks_before + 8) << "new blocks take the erased ones' places";
 
-  Arena fresh_arena(VoxelGrid::arena_bytes(kSamples));
-  VoxelGrid fresh;
-  fresh.init(fresh_arena, 0.2, kSamples);
-  for (const VoxelSums& sums : remaining) {
-    fresh.add_sums(sums);
-  }
-  fresh.compact();
-  fresh.estimate_shapes(ShapeOptions{});
-
-  ASSERT_EQ(kept.size(), fresh.size());
   EXPECT_GT(kept.shapes_reused(), 0u);
-  EXPECT_EQ(kept.surface_noise_m(), fresh.surface_noise_m());
-  for (std::size_t i = 0; i < kept.size(); ++i) {
-    const Voxel& a = kept.voxels()[i];
-    const Voxel& b = fresh.voxels()[i];
-    ASSERT_EQ(a.key, b.key) << "sample " << i;
-    EXPECT_EQ(a.point_count, b.point_count) << "sample " << i;
-    EXPECT_EQ(a.shape, b.shape) << "sample " << i;
-    EXPECT_EQ(a.axis, b.axis) << "sample " << i;
-  }
+  expect_grid_built_afresh(kept, remaining, kSamples);
   for (const CellKey key : erased) {
     kept.erase(key);  // gone already: nothing happens
   }
