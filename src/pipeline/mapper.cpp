@@ -122,6 +122,10 @@ void Mapper::init(Arena& arena, const MapperConfig& config) {
     poses_ = arena.allocate_array<localize::Pose3>(config.max_external_poses, "mapper.poses");
   }
   scans_ = arena.allocate_array<QueuedScan>(config.scan_queue_capacity, "mapper.scans");
+  scan_slots_ = arena.allocate_array<std::uint32_t>(config.scan_queue_capacity, "mapper.scans");
+  for (std::size_t slot = 0; slot < scan_slots_.size(); ++slot) {
+    scan_slots_[slot] = static_cast<std::uint32_t>(slot);
+  }
   points_ = arena.allocate_array<Eigen::Vector3f>(msg::kMaxLaserBeams, "mapper.points");
   cos_scan_plane_angle_ = std::cos(config.scan_plane_angle_deg * std::numbers::pi / 180.0);
   sin_scan_plane_angle_ = std::sin(config.scan_plane_angle_deg * std::numbers::pi / 180.0);
@@ -138,8 +142,8 @@ std::size_t Mapper::arena_bytes(const MapperConfig& config) noexcept {
          config.reorder_capacity * sizeof(Pending) +
          (config.pose_source == PoseSource::kExternal ? config.max_external_poses : 0) *
              sizeof(localize::Pose3) +
-         config.scan_queue_capacity * sizeof(QueuedScan) +
-         msg::kMaxLaserBeams * sizeof(Eigen::Vector3f) + 4 * kSlack;
+         config.scan_queue_capacity * (sizeof(QueuedScan) + sizeof(std::uint32_t)) +
+         msg::kMaxLaserBeams * sizeof(Eigen::Vector3f) + 5 * kSlack;
 }
 
 // --- Messages in --------------------------------------------------------------------------
@@ -180,8 +184,10 @@ bool Mapper::on_scan(std::size_t laser, const msg::LaserScan& scan) noexcept {
     ++counters_.scans_refused_full;
     return false;
   }
-  scans_[scan_count_].laser = laser;
-  scans_[scan_count_].scan = scan;
+  // The slots past the queue's end are the free ones.
+  QueuedScan& queued = scans_[scan_slots_[scan_count_]];
+  queued.laser = laser;
+  queued.scan = scan;
   ++scan_count_;
   return true;
 }
@@ -304,23 +310,27 @@ std::ptrdiff_t Mapper::next_ready_scan() const noexcept {
   TimestampNs horizon_ns = 0;
   const bool have_poses = pose_horizon(horizon_ns);
   std::ptrdiff_t oldest = -1;
+  TimestampNs oldest_ns = 0;
   for (std::size_t i = 0; i < scan_count_; ++i) {
-    const msg::LaserScan& scan = scans_[i].scan;
+    const msg::LaserScan& scan = scans_[scan_slots_[i]].scan;
     const bool covered = have_poses && map::ScanProjector::last_beam_stamp_ns(scan) <= horizon_ns;
-    if ((covered || ending_) &&
-        (oldest < 0 ||
-         scan.header.stamp_ns < scans_[static_cast<std::size_t>(oldest)].scan.header.stamp_ns)) {
+    if ((covered || ending_) && (oldest < 0 || scan.header.stamp_ns < oldest_ns)) {
       oldest = static_cast<std::ptrdiff_t>(i);
+      oldest_ns = scan.header.stamp_ns;
     }
   }
   return oldest;
 }
 
-void Mapper::remove_scan(std::size_t index) noexcept {
-  for (std::size_t i = index; i + 1 < scan_count_; ++i) {
-    scans_[i] = scans_[i + 1];
+void Mapper::remove_scan(std::size_t position) noexcept {
+  // The queue's order is kept (equal stamps go in arrival order), and the slot joins the
+  // free ones after the queue's end.
+  const std::uint32_t slot = scan_slots_[position];
+  for (std::size_t i = position; i + 1 < scan_count_; ++i) {
+    scan_slots_[i] = scan_slots_[i + 1];
   }
   --scan_count_;
+  scan_slots_[scan_count_] = slot;
 }
 
 void Mapper::record_laser_position(std::size_t laser, const localize::Pose3& pose) noexcept {
@@ -448,8 +458,9 @@ bool Mapper::step() noexcept {
   changes_ = {};
   release_due();
   for (std::ptrdiff_t next = next_ready_scan(); next >= 0; next = next_ready_scan()) {
-    const auto index = static_cast<std::size_t>(next);
-    const TimestampNs stamp_ns = scans_[index].scan.header.stamp_ns;
+    const auto position = static_cast<std::size_t>(next);
+    const QueuedScan& queued = scans_[scan_slots_[position]];
+    const TimestampNs stamp_ns = queued.scan.header.stamp_ns;
     if (!extraction_scheduled_) {
       extraction_scheduled_ = true;
       next_extraction_ns_ = stamp_ns + ns_from_seconds(config_.extract_every_s);
@@ -463,8 +474,8 @@ bool Mapper::step() noexcept {
       changes_ = registry_.changes();
       return true;
     }
-    project(scans_[index]);
-    remove_scan(index);
+    project(queued);
+    remove_scan(position);
   }
   if (!ending_ || pending_count_ > 0) {
     return false;

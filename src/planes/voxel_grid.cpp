@@ -179,6 +179,7 @@ void VoxelGrid::clear() noexcept {
   count_ = 0;
   block_index_.clear();
   block_count_ = 0;
+  ordered_blocks_ = 0;
   free_block_count_ = 0;
   last_index_ = CellIndex::kAbsent;
   counters_ = Counters{};
@@ -244,11 +245,12 @@ bool VoxelGrid::mark_in_block(std::int64_t x, std::int64_t y, std::int64_t z) no
     block_first_[block] = 0;
     if (keeping_shapes_) {
       kept_coarse_[block].known = false;
+      block_flags_[block] = kChanged;  // all new, and not placed under this key
     }
   }
   block_masks_[block] |= std::uint64_t{1} << bit_in_block(x, y, z);
   if (keeping_shapes_) {
-    block_flags_[block] = kChanged;  // a new cell (and a new block is all new)
+    block_flags_[block] |= kChanged;  // a new cell
   }
   return true;
 }
@@ -317,14 +319,104 @@ CentredSums about_block_centre(const VoxelSums& sums, std::uint32_t bit, float s
 }  // namespace
 
 void VoxelGrid::compact() noexcept {
+  // Kept shapes come with a flag per block that says whether it changed: then only those
+  // need reading, and the order of the others is still sorted.
+  const bool incremental = keeping_shapes_ && ordered_blocks_ > 0;
+  order_blocks(incremental);
+  if (incremental) {
+    lay_out_changed_blocks();
+  } else {
+    lay_out_all_blocks();
+  }
+  std::fill_n(block_summed_.begin(), block_count_, std::uint8_t{0});  // summed when needed
+  ordered_blocks_ = block_count_;
+  for (std::size_t i = 0; keeping_shapes_ && i < block_count_; ++i) {
+    block_order_[i].first = block_first_[block_order_[i].block];
+    block_flags_[block_order_[i].block] |= kPlaced;
+  }
+}
+
+void VoxelGrid::order_blocks(bool keep_placed) noexcept {
   // Blocks in Z-order: a sample's neighbours in the 26 blocks around its own are then mostly
   // near it in memory too (in first-touch order they were anywhere along the path).
-  for (std::size_t block = 0; block < block_count_; ++block) {
-    block_order_[block] =
-        BlockOrder{morton_code(block_keys_[block]), static_cast<std::uint32_t>(block)};
+  const auto by_code = [](const BlockOrder& a, const BlockOrder& b) { return a.code < b.code; };
+  if (!keep_placed) {
+    for (std::size_t block = 0; block < block_count_; ++block) {
+      block_order_[block] = BlockOrder{morton_code(block_keys_[block]),
+                                       static_cast<std::uint32_t>(block), kNotLaidOut};
+    }
+    std::sort(block_order_.begin(),
+              block_order_.begin() + static_cast<std::ptrdiff_t>(block_count_), by_code);
+    return;
   }
-  std::sort(block_order_.begin(), block_order_.begin() + static_cast<std::ptrdiff_t>(block_count_),
-            [](const BlockOrder& a, const BlockOrder& b) { return a.code < b.code; });
+  // The blocks still placed keep their order (an index that serves a new key is not placed);
+  // the others are sorted at the far end of the array and merged in from the back, which
+  // never overwrites an entry still to be read (kept + fresh <= the array's size).
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < ordered_blocks_; ++i) {
+    if ((block_flags_[block_order_[i].block] & kPlaced) != 0) {
+      block_order_[kept++] = block_order_[i];
+    }
+  }
+  const std::size_t end = block_order_.size();
+  std::size_t fresh = 0;
+  for (std::size_t block = 0; block < block_count_; ++block) {
+    if ((block_flags_[block] & kPlaced) == 0) {
+      block_order_[end - ++fresh] = BlockOrder{morton_code(block_keys_[block]),
+                                               static_cast<std::uint32_t>(block), kNotLaidOut};
+    }
+  }
+  const auto fresh_first = block_order_.begin() + static_cast<std::ptrdiff_t>(end - fresh);
+  std::sort(fresh_first, block_order_.end(), by_code);
+  std::size_t out = kept + fresh;
+  std::size_t a = kept;   // placed entries left to merge, from the back
+  std::size_t b = fresh;  // fresh ones
+  while (b > 0) {
+    const BlockOrder& next_fresh = block_order_[end - fresh + b - 1];
+    if (a > 0 && by_code(next_fresh, block_order_[a - 1])) {
+      block_order_[--out] = block_order_[--a];
+    } else {
+      block_order_[--out] = next_fresh;
+      --b;
+    }
+  }
+}
+
+std::uint64_t VoxelGrid::live_cells(std::uint32_t block) const noexcept {
+  const Eigen::Matrix<std::int64_t, 3, 1> base = unpack_cell(block_keys_[block]) * kBlockEdge;
+  std::uint64_t live = 0;
+  for (std::uint64_t cells = block_masks_[block]; cells != 0; cells &= cells - 1) {
+    const auto bit = static_cast<std::uint32_t>(std::countr_zero(cells));
+    // A cell marked in its block always has its slot: blocks are marked on creation.
+    const std::uint32_t slot =
+        find(pack_cell(base.x() + (bit >> 4), base.y() + ((bit >> 2) & 3), base.z() + (bit & 3)));
+    if (table_[slot].point_count > 0) {  // else every point was taken back out
+      live |= std::uint64_t{1} << bit;
+    }
+  }
+  return live;
+}
+
+void VoxelGrid::load_block(std::uint32_t block, std::uint64_t live, std::size_t first) noexcept {
+  const Eigen::Matrix<std::int64_t, 3, 1> base = unpack_cell(block_keys_[block]) * kBlockEdge;
+  std::size_t id = first;
+  for (std::uint64_t cells = live; cells != 0; cells &= cells - 1) {
+    const auto bit = static_cast<std::uint32_t>(std::countr_zero(cells));
+    const std::uint32_t slot =
+        find(pack_cell(base.x() + (bit >> 4), base.y() + ((bit >> 2) & 3), base.z() + (bit & 3)));
+    const VoxelSums& sums = table_[slot];
+    if (keeping_shapes_) {
+      dense_serial_[id] = serial_of_slot_[slot];
+    }
+    centred_sums_[id] = about_block_centre(sums, bit, size_m_);
+    Voxel& voxel = voxels_[id++];
+    voxel = Voxel{};
+    static_cast<VoxelSums&>(voxel) = sums;
+    voxel.block = block;
+  }
+}
+
+void VoxelGrid::lay_out_all_blocks() noexcept {
   count_ = 0;
   // A block's cells hash to the slots after the home slot of its first cell (offset by their
   // bit); the table is tens of MiB, so the slots of the block kAhead places on are fetched
@@ -359,30 +451,95 @@ void VoxelGrid::compact() noexcept {
       prefetch_block(i + kAhead);
     }
     const std::uint32_t block = block_order_[i].block;
+    const std::uint64_t live = live_cells(block);
     block_first_[block] = static_cast<std::uint32_t>(count_);
-    const Eigen::Matrix<std::int64_t, 3, 1> base = unpack_cell(block_keys_[block]) * kBlockEdge;
-    std::uint64_t live = 0;
-    for (std::uint64_t cells = block_masks_[block]; cells != 0; cells &= cells - 1) {
-      const auto bit = static_cast<std::uint32_t>(std::countr_zero(cells));
-      // A cell marked in its block always has its slot: blocks are marked on creation.
-      const std::uint32_t slot =
-          find(pack_cell(base.x() + (bit >> 4), base.y() + ((bit >> 2) & 3), base.z() + (bit & 3)));
-      const VoxelSums& sums = table_[slot];
-      if (sums.point_count == 0) {
-        continue;  // every point taken back out
-      }
-      if (keeping_shapes_) {
-        dense_serial_[count_] = serial_of_slot_[slot];
-      }
-      centred_sums_[count_] = about_block_centre(sums, bit, size_m_);
-      Voxel& voxel = voxels_[count_++];
-      voxel = Voxel{};
-      static_cast<VoxelSums&>(voxel) = sums;
-      voxel.block = block;
-      live |= std::uint64_t{1} << bit;
-    }
     live_masks_[block] = live;
-    block_summed_[block] = 0;  // summed when a coarse look first needs it
+    load_block(block, live, count_);
+    count_ += static_cast<std::size_t>(std::popcount(live));
+  }
+}
+
+void VoxelGrid::move_samples(std::size_t from, std::size_t to, std::size_t count) noexcept {
+  const auto move = [&](auto span) {
+    const auto source = span.begin() + static_cast<std::ptrdiff_t>(from);
+    const auto target = span.begin() + static_cast<std::ptrdiff_t>(to);
+    const auto source_end = source + static_cast<std::ptrdiff_t>(count);
+    if (to < from) {
+      std::copy(source, source_end, target);
+    } else {
+      std::copy_backward(source, source_end, target + static_cast<std::ptrdiff_t>(count));
+    }
+  };
+  move(voxels_);
+  move(centred_sums_);
+  move(dense_serial_);
+}
+
+void VoxelGrid::lay_out_changed_blocks() noexcept {
+  const auto reloaded = [this](const BlockOrder& entry) {
+    return entry.first == kNotLaidOut || (block_flags_[entry.block] & kChanged) != 0;
+  };
+  // Where each block's samples go: a changed block's live cells are read from the table, a
+  // kept one's are as they were. block_first_ takes the new place, the entry keeps the old.
+  count_ = 0;
+  for (std::size_t i = 0; i < block_count_; ++i) {
+    const BlockOrder& entry = block_order_[i];
+    if (reloaded(entry)) {
+      live_masks_[entry.block] = live_cells(entry.block);
+    }
+    block_first_[entry.block] = static_cast<std::uint32_t>(count_);
+    count_ += static_cast<std::size_t>(std::popcount(live_masks_[entry.block]));
+  }
+  // Kept blocks move in runs (neighbours in the layout with the same shift): the ones that
+  // move towards the front in order, then the ones that move back in reverse order. The
+  // order is the same before and after, so neither overwrites samples still to move.
+  struct Run {
+    std::size_t from = 0;
+    std::size_t to = 0;
+    std::size_t count = 0;
+  };
+  Run run;
+  const auto flush = [&] {
+    if (run.count > 0) {
+      move_samples(run.from, run.to, run.count);
+    }
+    run = Run{};
+  };
+  for (std::size_t i = 0; i < block_count_; ++i) {
+    const BlockOrder& entry = block_order_[i];
+    const std::size_t to = block_first_[entry.block];
+    if (reloaded(entry) || to >= entry.first) {
+      continue;
+    }
+    const auto count = static_cast<std::size_t>(std::popcount(live_masks_[entry.block]));
+    if (run.count == 0 || entry.first != run.from + run.count || to != run.to + run.count) {
+      flush();
+      run = Run{entry.first, to, 0};
+    }
+    run.count += count;
+  }
+  flush();
+  for (std::size_t i = block_count_; i-- > 0;) {
+    const BlockOrder& entry = block_order_[i];
+    const std::size_t to = block_first_[entry.block];
+    if (reloaded(entry) || to <= entry.first) {
+      continue;
+    }
+    const auto count = static_cast<std::size_t>(std::popcount(live_masks_[entry.block]));
+    if (run.count == 0 || entry.first + count != run.from || to + count != run.to) {
+      flush();
+      run = Run{entry.first + count, to + count, 0};
+    }
+    run.from -= count;
+    run.to -= count;
+    run.count += count;
+  }
+  flush();
+  for (std::size_t i = 0; i < block_count_; ++i) {
+    const BlockOrder& entry = block_order_[i];
+    if (reloaded(entry)) {
+      load_block(entry.block, live_masks_[entry.block], block_first_[entry.block]);
+    }
   }
 }
 
@@ -691,7 +848,10 @@ void VoxelGrid::estimate_shapes(const ShapeOptions& options) noexcept {
     take_coarse_look(options, limits);
   }
   if (keeping_shapes_) {
-    std::fill_n(block_flags_.begin(), block_count_, std::uint8_t{0});
+    // Changed and stale are done with; placed stays until the index serves a new key.
+    for (std::size_t block = 0; block < block_count_; ++block) {
+      block_flags_[block] &= kPlaced;
+    }
   }
 }
 

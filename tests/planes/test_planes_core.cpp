@@ -560,6 +560,12 @@ void expect_grid_built_afresh(const VoxelGrid& kept, std::span<const VoxelSums> 
     const Voxel& b = fresh.voxels()[i];
     ASSERT_EQ(a.key, b.key) << "sample " << i;
     EXPECT_EQ(a.point_count, b.point_count) << "sample " << i;
+    for (std::size_t k = 0; k < 3; ++k) {
+      EXPECT_EQ(a.sum_m[k], b.sum_m[k]) << "sample " << i;
+    }
+    for (std::size_t k = 0; k < 6; ++k) {
+      EXPECT_EQ(a.sum_outer_m2[k], b.sum_outer_m2[k]) << "sample " << i;
+    }
     EXPECT_EQ(a.shape, b.shape) << "sample " << i;
     EXPECT_EQ(a.axis, b.axis) << "sample " << i;
   }
@@ -662,6 +668,53 @@ TEST(VoxelGrid, ErasedSamplesLeaveTheGridOfTheSamplesThatRemain) {
     kept.erase(key);  // gone already: nothing happens
   }
   EXPECT_EQ(kept.counters().points_erased, erased_points);
+}
+
+// A kept grid moves the samples of unchanged blocks to their new places instead of reading
+// them again. Round after round of a window sliding along a floor and a wall (samples leave
+// behind it, come in front of it, and some in between gain points), its layout is the layout
+// of a grid built afresh, sample by sample and sum by sum.
+TEST(VoxelGrid, MovedSamplesLayOutAsAGridBuiltAfreshRoundAfterRound) {
+  constexpr std::size_t kSamples = std::size_t{1} << 16;
+  const std::vector<VoxelSums> all = samples_of(floor_and_blurred_wall_band(0.03f, 5));
+  Arena arena(VoxelGrid::arena_bytes(kSamples) + VoxelGrid::shape_cache_bytes(kSamples));
+  VoxelGrid kept;
+  kept.init(arena, 0.2, kSamples);
+  kept.keep_shapes(arena);
+  std::vector<VoxelSums> inside(all.size());  // what the kept grid holds, by index into all
+  std::vector<bool> held(all.size(), false);
+  constexpr std::int64_t kWindowCells = 80;  // 16 m along y
+  constexpr std::int64_t kStepCells = 25;
+  for (std::int64_t round = 0; round < 7; ++round) {
+    const std::int64_t first = round * kStepCells;
+    for (std::size_t i = 0; i < all.size(); ++i) {
+      const std::int64_t y = unpack_cell(all[i].key).y();
+      const bool in_window = y >= first && y < first + kWindowCells;
+      if (held[i] && !in_window) {
+        kept.erase(all[i].key);
+        held[i] = false;
+      } else if (!held[i] && in_window) {
+        kept.add_sums(all[i]);
+        inside[i] = all[i];
+        held[i] = true;
+      } else if (held[i] && y % 9 == round % 9) {
+        inside[i].point_count += 1;  // a point at the voxel's centre: the sums stay
+        kept.set_sums(inside[i]);
+      }
+    }
+    kept.compact();
+    kept.estimate_shapes(ShapeOptions{});
+    std::vector<VoxelSums> now;
+    now.reserve(all.size());
+    for (std::size_t i = 0; i < all.size(); ++i) {
+      if (held[i]) {
+        now.push_back(inside[i]);
+      }
+    }
+    ASSERT_GT(now.size(), 1000u) << "round " << round;
+    SCOPED_TRACE(::testing::Message() << "round " << round);
+    expect_grid_built_afresh(kept, now, kSamples);
+  }
 }
 
 void expect_same_planes(std::span<const msg::PlanePatch> a, std::span<const msg::PlanePatch> b) {

@@ -227,7 +227,8 @@ class Mapper {
   // The oldest queued scan whose last beam the poses cover (all of them when ending); or -1.
   [[nodiscard]] std::ptrdiff_t next_ready_scan() const noexcept;
   void project(const QueuedScan& queued) noexcept;
-  void remove_scan(std::size_t index) noexcept;
+  // Takes the scan at `position` in the queue out (its slot becomes free).
+  void remove_scan(std::size_t position) noexcept;
   // The window's samples into the detector: all of them, or those that changed.
   void give_detector_the_window() noexcept;
   void extract(TimestampNs stamp_ns) noexcept;
@@ -265,7 +266,10 @@ class Mapper {
   std::size_t pose_first_ = 0;
   std::size_t pose_count_ = 0;
 
+  // Waiting scans stay in their slot (a scan is kilobytes): the queue is the list of their
+  // slots in arrival order, and the slots not in it are free.
   std::span<QueuedScan> scans_;
+  std::span<std::uint32_t> scan_slots_;  // [0, scan_count_): waiting, in arrival order
   std::size_t scan_count_ = 0;
   std::span<Eigen::Vector3f> points_;
   // Each laser's scan plane at its latest scan, and where it has been (a ring, any order).

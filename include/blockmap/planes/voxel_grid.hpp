@@ -219,6 +219,9 @@ class VoxelGrid {
   // coordinates, cells in bit order): a block's samples are one range, and a
   // neighbour is found by a bit count instead of a table lookup. Call after adding points
   // and before reading voxels(), blocks or shapes.
+  // With kept shapes, a compact() after the first reads from the table only the blocks that
+  // changed: the others keep their place in the order and their samples are moved as they
+  // are (the same layout as afresh, at the cost of a copy).
   void compact() noexcept;
   // Classifies every sample by the moments of its 3 x 3 x 3 neighbourhood (after compact()).
   // With coarse_second_look, samples that are scattered then get the shape of the 3 x 3 x 3
@@ -299,6 +302,18 @@ class VoxelGrid {
   [[nodiscard]] std::size_t home_slot(CellKey key) const noexcept {
     return block_local_home_slot(key, shift_, mask_);
   }
+  // compact()'s steps: the blocks in Z-order (the blocks placed before keep their order, new
+  // ones are sorted and merged in, with kept shapes); every block read from the table; or
+  // only the changed ones, the others' samples moved to their new places.
+  void order_blocks(bool keep_placed) noexcept;
+  void lay_out_all_blocks() noexcept;
+  void lay_out_changed_blocks() noexcept;
+  // The cells of a block that hold points now (reads the table).
+  [[nodiscard]] std::uint64_t live_cells(std::uint32_t block) const noexcept;
+  // Reads the samples of `live` cells of a block from the table into the layout at `first`.
+  void load_block(std::uint32_t block, std::uint64_t live, std::size_t first) noexcept;
+  // Moves `count` laid-out samples (sums, centred sums, serials) from `from` to `to`.
+  void move_samples(std::size_t from, std::size_t to, std::size_t count) noexcept;
   // Marks the cell in its block, creating the block; false when that needs one too many.
   bool mark_in_block(std::int64_t x, std::int64_t y, std::int64_t z) noexcept;
   // Unmarks an erased cell; a block left empty is erased too.
@@ -379,8 +394,11 @@ class VoxelGrid {
   struct BlockOrder {
     std::uint64_t code = 0;  // Z-order of the block's coordinates
     std::uint32_t block = 0;
+    std::uint32_t first = 0;  // its first sample in the layout of the compact() that placed it
   };
+  static constexpr std::uint32_t kNotLaidOut = 0xFFFFFFFFu;
   std::span<BlockOrder> block_order_;     // blocks as compact() laid them out
+  std::size_t ordered_blocks_ = 0;        // entries of block_order_ (block_count_ then)
   std::span<CentredSums> centred_sums_;   // per sample, about its block's centre (compact())
   std::span<CentredSums> block_sums_;     // per block, when a coarse look needs it
   std::span<std::uint8_t> block_summed_;  // 1: block_sums_ holds the block's sums
@@ -399,6 +417,9 @@ class VoxelGrid {
   };
   static constexpr std::uint8_t kChanged = 1;
   static constexpr std::uint8_t kStale = 2;
+  // In block_order_ under its present key: the next compact() keeps its place, and moves its
+  // samples as they are unless it changed (kept until the block's index serves a new key).
+  static constexpr std::uint8_t kPlaced = 4;
   bool keeping_shapes_ = false;
   std::span<std::uint32_t> serial_of_slot_;
   std::span<std::uint32_t> free_serials_;  // serials of erased voxels, for new ones
