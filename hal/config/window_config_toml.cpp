@@ -38,6 +38,14 @@ pipeline::MapperConfig parse_window_config(std::string_view text, std::string_vi
     }
     t.finish();
   }
+  if (auto table = root.table("mapper")) {
+    TableReader& t = *table;
+    // Seconds of scan time between two plane extractions: the plane list's update period,
+    // and most of the mapper's cost (docs/mapper.md, Speed).
+    c.extract_every_s =
+        t.positive("extract_every_s", t.number_or("extract_every_s", c.extract_every_s));
+    t.finish();
+  }
   return c;
 }
 

@@ -87,7 +87,7 @@ TEST(RunCommand, BadOptionsGetOneClearLine) {
   fs::remove_all(out);
 }
 
-TEST(RunCommand, TheConfigSetsTheWindowAndEveryMistakeNamesItsKey) {
+TEST(RunCommand, TheConfigSetsTheWindowAndTheExtractionsAndEveryMistakeNamesItsKey) {
   const fs::path out = scratch("window");
   fs::create_directories(out);
   const auto config_with = [&](const std::string& name, const std::string& text) {
@@ -98,11 +98,17 @@ TEST(RunCommand, TheConfigSetsTheWindowAndEveryMistakeNamesItsKey) {
   const std::string wide =
       config_with("wide.toml",
                   "[window]\ntiles_across = 9\nmax_samples = 40960\n[projection]\n"
-                  "max_range_m = 50.0\n");
+                  "max_range_m = 50.0\n[mapper]\nextract_every_s = 0.25\n");
   testing::CliResult result =
       run_cli({"run", "--config", wide, "--duration-s", "2", "--out", (out / "run").string()});
   ASSERT_EQ(result.status, kExitOk) << result.err;
   EXPECT_NE(result.err.find("samples of 40960"), std::string::npos) << result.err;
+  // Two seconds at a quarter second each: several extractions, where the default's 1 s
+  // makes one or two.
+  const std::size_t at = result.err.find(" extractions (");
+  ASSERT_NE(at, std::string::npos) << result.err;
+  const std::size_t first = result.err.rfind(' ', at - 1) + 1;
+  EXPECT_GE(std::stoi(result.err.substr(first, at - first)), 5) << result.err;
 
   const std::vector<std::pair<std::string, std::string>> mistakes = {
       {"[window]\ntiles_across = 8\n", "window.tiles_across: must be odd"},
@@ -111,6 +117,8 @@ TEST(RunCommand, TheConfigSetsTheWindowAndEveryMistakeNamesItsKey) {
       {"[projection]\nmax_range_m = -1.0\n", "projection.max_range_m: must be > 0"},
       {"[projection]\nmin_range_m = 5.0\nmax_range_m = 4.0\n",
        "projection.max_range_m: must be more than min_range_m"},
+      {"[mapper]\nextract_every_s = 0\n", "mapper.extract_every_s: must be > 0"},
+      {"[mapper]\nextract_every = 2\n", "mapper.extract_every: unknown key"},
   };
   for (const auto& [text, expected] : mistakes) {
     result = run_cli({"run", "--config", config_with("bad.toml", text), "--duration-s", "1",
