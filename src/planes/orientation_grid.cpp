@@ -38,7 +38,7 @@ bool searched(double theta_rad, OrientationMode mode, double tolerance_rad) {
 }  // namespace
 
 void OrientationGrid::init(Arena& arena, double angle_bin_deg, OrientationMode mode,
-                           double tolerance_deg, double kernel_deg) {
+                           double tolerance_deg, double kernel_deg, Contents contents) {
   BLOCKMAP_CHECK_MSG(angle_bin_deg > 0.0 && angle_bin_deg <= 30.0, "angle bin out of range");
   // A whole number of bands from the pole to the equator, the equator band centred on it.
   const auto intervals = static_cast<std::uint32_t>(std::lround(90.0 / angle_bin_deg));
@@ -80,12 +80,14 @@ void OrientationGrid::init(Arena& arena, double angle_bin_deg, OrientationMode m
   neighbour_table_ = arena.allocate_array<Neighbour>(
       static_cast<std::size_t>(rows) * kMaxNeighbours, "planes.orientation_grid");
   neighbour_count_ = arena.allocate_array<std::uint8_t>(rows, "planes.orientation_grid");
-  build_neighbours();
-  build_kernels(arena, static_cast<float>(degrees_to_radians(kernel_deg)));
+  if (contents == Contents::kFull) {
+    build_neighbours();
+  }
+  build_kernels(arena, static_cast<float>(degrees_to_radians(kernel_deg)), contents);
 }
 
-void OrientationGrid::build_kernels(Arena& arena, float kernel_rad) {
-  // Twice over the cells: count, then fill the flat table.
+void OrientationGrid::build_kernels(Arena& arena, float kernel_rad, Contents contents) {
+  // Twice over the cells: count, then fill the flat table (sizes only: count).
   const std::size_t cells = cell_normal_.size();
   surface_first_ = arena.allocate_array<std::uint32_t>(cells + 1, "planes.orientation_grid");
   line_first_ = arena.allocate_array<std::uint32_t>(cells + 1, "planes.orientation_grid");
@@ -95,6 +97,9 @@ void OrientationGrid::build_kernels(Arena& arena, float kernel_rad) {
     visit_rows_perpendicular_to(cell_normal_[cell], [&](std::uint32_t) { ++total; });
   }
   flat_ = arena.allocate_array<std::uint32_t>(total, "planes.orientation_grid");
+  if (contents == Contents::kSizesOnly) {
+    return;
+  }
   std::uint32_t next = 0;
   const auto append = [&](std::uint32_t row) { flat_[next++] = row; };
   for (std::size_t cell = 0; cell < cells; ++cell) {

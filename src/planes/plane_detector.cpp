@@ -27,8 +27,8 @@ ShapeOptions shape_options(const PlanesConfig& config) noexcept {
 
 // The orientation grid's bytes and searched rows. Its kernels hold only searched rows, so
 // their size depends on the geometry (walls and roofs search a tenth of the sphere): one is
-// built in a scratch arena, sized by the bound for any orientation, and measured. Start-up
-// only (budgets are checked before anything runs).
+// sized in a scratch arena (its kernels counted, not filled), itself sized by the bound for
+// any orientation, and measured. Start-up only (budgets are checked before anything runs).
 struct MeasuredGrid {
   double bytes = 0.0;
   double rows = 0.0;
@@ -48,7 +48,8 @@ MeasuredGrid measured_orientation_grid(const PlanesConfig& config) {
   Arena scratch(static_cast<std::size_t>(bound) + (std::size_t{1} << 12));
   OrientationGrid grid;
   grid.init(scratch, config.angle_bin_deg, config.orientation_mode,
-            config.orientation_tolerance_deg, config.normal_kernel_deg);
+            config.orientation_tolerance_deg, config.normal_kernel_deg,
+            OrientationGrid::Contents::kSizesOnly);
   return {static_cast<double>(scratch.used_bytes()), static_cast<double>(grid.row_count())};
 }
 

@@ -36,8 +36,11 @@ class OrientationGrid {
   // row of the Hough accumulator. Every cell gets two vote kernels, computed once here: the
   // searched rows within kernel_deg of it (a surface with that normal votes for them) and the
   // searched rows perpendicular to it (a line in that direction lies in those planes).
+  // kSizesOnly takes from the arena exactly what kFull takes, but leaves the kernels and
+  // neighbours empty (half the work): a budget measured at start-up, not a grid to use.
+  enum class Contents : std::uint8_t { kFull, kSizesOnly };
   void init(Arena& arena, double angle_bin_deg, OrientationMode mode, double tolerance_deg,
-            double kernel_deg);
+            double kernel_deg, Contents contents = Contents::kFull);
 
   [[nodiscard]] std::size_t cell_count() const noexcept { return cell_normal_.size(); }
   [[nodiscard]] std::size_t row_count() const noexcept { return row_cell_.size(); }
@@ -81,7 +84,7 @@ class OrientationGrid {
   void visit_band_cells_near(std::uint32_t band, float phi_rad, float half_width_rad,
                              Visit&& visit) const;
   void build_neighbours();
-  void build_kernels(Arena& arena, float kernel_rad);
+  void build_kernels(Arena& arena, float kernel_rad, Contents contents);
 
   std::uint32_t band_count_ = 0;  // bands 0 (the pole) .. band_count_ - 1 (the equator)
   float band_step_rad_ = 0.0f;
