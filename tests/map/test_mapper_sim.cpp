@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <map>
 #include <memory>
+#include <numbers>
 #include <string>
 #include <vector>
 
@@ -256,6 +257,23 @@ TEST(MapperSim, UscBlockWithFilterPoses) {
   const MapperRun run = map_world("usc_block", PoseSource::kLocalizer);
   const testing::PlaneScore s = score(run, "usc_block, filter poses");
   EXPECT_LE(s.structural_planes, 30u);
+  // Where the map sits is the GPS's; its shape is the mapper's. Laid onto the truth by the
+  // best turn and shift, the walls are scored again (docs/mapper.md, Accuracy).
+  const testing::MapAlignment alignment =
+      testing::align_planes_to_faces(run.faces, run.final_planes);
+  MapperRun aligned = run;
+  for (msg::PlanePatch& plane : aligned.final_planes) {
+    plane = alignment.apply(plane);
+  }
+  std::printf(
+      "usc_block, filter poses: turned %.2f deg and shifted (%.2f %.2f %.2f) m onto the "
+      "truth, %zu pairs\n",
+      alignment.yaw_rad * 180.0 / std::numbers::pi, alignment.shift_m.x(), alignment.shift_m.y(),
+      alignment.shift_m.z(), alignment.pairs);
+  const testing::PlaneScore a = score(aligned, "usc_block, filter poses, aligned");
+  EXPECT_GE(alignment.pairs, 5u);
+  EXPECT_LT(alignment.shift_m.norm(), 5.0) << "a GPS-grade map is metres off at most";
+  EXPECT_GE(a.structural_real, s.structural_real) << "aligned, no fewer planes lie on faces";
   expect_stream_gives_final_list(run);
   EXPECT_GT(run.counters.scans_projected, 20000u);
 }

@@ -10,7 +10,9 @@
 #include <span>
 #include <vector>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include "blockmap/hal/sim/scene.hpp"
 #include "blockmap/msg/plane_patch.hpp"
@@ -53,16 +55,20 @@ struct FaceMatch {
   double offset_m = 0.0;
 };
 
+inline Eigen::Vector3d face_centre(const hal::sim::TruthFace& face) {
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& corner : face.corners_m) {
+    centre += corner;
+  }
+  return centre / static_cast<double>(std::max<std::size_t>(face.corners_m.size(), 1));
+}
+
 inline FaceMatch match_face(const hal::sim::TruthFace& face, const msg::PlanePatch& plane,
                             const PlaneMatchLimits& limits) {
   FaceMatch match;
   const double cos_angle = std::min(1.0, std::abs(face.normal.dot(plane.normal)));
   match.angle_deg = std::acos(cos_angle) * 180.0 / std::numbers::pi;
-  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-  for (const Eigen::Vector3d& corner : face.corners_m) {
-    centre += corner;
-  }
-  centre /= static_cast<double>(face.corners_m.size());
+  const Eigen::Vector3d centre = face_centre(face);
   match.offset_m = std::abs(plane.normal.dot(centre) - plane.d_m);
   if (match.angle_deg >= limits.max_angle_deg || match.offset_m >= limits.max_offset_m) {
     return match;
@@ -150,6 +156,108 @@ inline PlaneScore score_planes(std::span<const hal::sim::TruthFace> faces,
   score.median_angle_deg = median(angles);
   score.median_offset_m = median(offsets);
   return score;
+}
+
+// The rigid motion (a turn about the vertical through `pivot_m`, then a shift) that best lays a
+// map's structural planes onto the truth faces. A map drawn with GPS-grade poses sits as far
+// from the truth as the receiver's slow error: scored after this motion, what is left is the
+// map's own shape (walls bent or doubled by heading drift), not where on Earth it sits.
+struct MapAlignment {
+  double yaw_rad = 0.0;
+  Eigen::Vector3d pivot_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d shift_m = Eigen::Vector3d::Zero();
+  std::size_t pairs = 0;  // plane-face pairs in the last step
+
+  [[nodiscard]] Eigen::Matrix3d rotation() const {
+    return Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  }
+  [[nodiscard]] Eigen::Vector3d apply(const Eigen::Vector3d& point_m) const {
+    return rotation() * (point_m - pivot_m) + pivot_m + shift_m;
+  }
+  [[nodiscard]] msg::PlanePatch apply(const msg::PlanePatch& plane) const {
+    msg::PlanePatch out = plane;
+    out.normal = rotation() * plane.normal;
+    out.centroid_m = apply(plane.centroid_m);
+    out.d_m = out.normal.dot(out.centroid_m);
+    for (std::size_t i = 0; i < plane.polygon_size; ++i) {
+      out.polygon_m[i] = apply(plane.polygon_m[i]);
+    }
+    return out;
+  }
+};
+
+// Iterated closest faces: each structural plane (as moved so far) is paired with the face of
+// its kind nearest in angle and offset within the gates, which shrink from (10 deg, 3 m) to
+// (4 deg, 0.6 m); the turn is the support-weighted mean angle between paired wall normals,
+// the shift the support-weighted least squares of the paired offsets.
+inline MapAlignment align_planes_to_faces(std::span<const hal::sim::TruthFace> faces,
+                                          std::span<const msg::PlanePatch> planes) {
+  MapAlignment alignment;
+  double weight = 0.0;
+  for (const msg::PlanePatch& plane : planes) {
+    if (structural(plane.kind)) {
+      alignment.pivot_m += plane.support * plane.centroid_m;
+      weight += plane.support;
+    }
+  }
+  if (weight <= 0.0) {
+    return alignment;
+  }
+  alignment.pivot_m /= weight;
+  constexpr int kSteps = 12;
+  for (int step = 0; step < kSteps; ++step) {
+    const double t = static_cast<double>(step) / (kSteps - 1);
+    const double max_angle_rad = (10.0 - 6.0 * t) * std::numbers::pi / 180.0;
+    const double max_offset_m = 3.0 - 2.4 * t;
+    double turn_sum = 0.0;
+    double turn_weight = 0.0;
+    Eigen::Matrix3d normal_equations = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d right_side = Eigen::Vector3d::Zero();
+    alignment.pairs = 0;
+    for (const msg::PlanePatch& original : planes) {
+      if (!structural(original.kind)) {
+        continue;
+      }
+      const msg::PlanePatch plane = alignment.apply(original);
+      const hal::sim::TruthFace* best = nullptr;
+      double best_offset_m = max_offset_m;
+      for (const hal::sim::TruthFace& face : faces) {
+        const double cos_angle = std::min(1.0, std::abs(face.normal.dot(plane.normal)));
+        if (std::acos(cos_angle) > max_angle_rad) {
+          continue;
+        }
+        const double offset_m = std::abs(plane.normal.dot(face_centre(face)) - plane.d_m);
+        if (offset_m < best_offset_m) {
+          best = &face;
+          best_offset_m = offset_m;
+        }
+      }
+      if (best == nullptr) {
+        continue;
+      }
+      ++alignment.pairs;
+      // The face's normal, signed as the plane's.
+      const Eigen::Vector3d n = best->normal.dot(plane.normal) < 0.0 ? -best->normal : best->normal;
+      const double face_d_m = n.dot(face_centre(*best));
+      if (std::abs(n.z()) < 0.5) {  // a wall: its azimuth turns the map
+        const double turn = std::atan2(plane.normal.x() * n.y() - plane.normal.y() * n.x(),
+                                       plane.normal.x() * n.x() + plane.normal.y() * n.y());
+        turn_sum += plane.support * turn;
+        turn_weight += plane.support;
+      }
+      // n . (c + s) = face_d: the shift s that puts the plane's centroid on the face.
+      const double residual_m = face_d_m - n.dot(plane.centroid_m);
+      normal_equations += plane.support * n * n.transpose();
+      right_side += plane.support * residual_m * n;
+    }
+    if (turn_weight > 0.0) {
+      alignment.yaw_rad += turn_sum / turn_weight;
+    }
+    // Directions no pair constrains stay where they are.
+    normal_equations += 1e-6 * weight * Eigen::Matrix3d::Identity();
+    alignment.shift_m += normal_equations.ldlt().solve(right_side);
+  }
+  return alignment;
 }
 
 }  // namespace blockmap::testing
