@@ -571,6 +571,18 @@ void expect_grid_built_afresh(const VoxelGrid& kept, std::span<const VoxelSums> 
   }
 }
 
+// A grid of 0.2 m samples that keeps its shapes, holding `sums`, laid out and shaped once.
+void start_kept_grid(VoxelGrid& grid, Arena& arena, std::span<const VoxelSums> sums,
+                     std::size_t capacity) {
+  grid.init(arena, 0.2, capacity);
+  grid.keep_shapes(arena);
+  for (const VoxelSums& sample : sums) {
+    grid.add_sums(sample);
+  }
+  grid.compact();
+  grid.estimate_shapes(ShapeOptions{});
+}
+
 // Kept shapes: after some samples change (set_sums) and some are new (add_sums), the shapes
 // that estimate_shapes() keeps and the ones it estimates again are exactly those of a grid
 // built afresh from the same sums.
@@ -591,13 +603,7 @@ TEST(VoxelGrid, KeptShapesAreTheShapesOfAGridBuiltAfresh) {
 
   Arena arena(VoxelGrid::arena_bytes(kSamples) + VoxelGrid::shape_cache_bytes(kSamples));
   VoxelGrid kept;
-  kept.init(arena, 0.2, kSamples);
-  kept.keep_shapes(arena);
-  for (const VoxelSums& sums : before) {
-    kept.add_sums(sums);
-  }
-  kept.compact();
-  kept.estimate_shapes(ShapeOptions{});
+  start_kept_grid(kept, arena, before, kSamples);
   for (const VoxelSums& sums : after) {
     kept.set_sums(sums);
   }
@@ -643,13 +649,7 @@ TEST(VoxelGrid, ErasedSamplesLeaveTheGridOfTheSamplesThatRemain) {
 
   Arena arena(VoxelGrid::arena_bytes(kSamples) + VoxelGrid::shape_cache_bytes(kSamples));
   VoxelGrid kept;
-  kept.init(arena, 0.2, kSamples);
-  kept.keep_shapes(arena);
-  for (const VoxelSums& sums : before) {
-    kept.add_sums(sums);
-  }
-  kept.compact();
-  kept.estimate_shapes(ShapeOptions{});
+  start_kept_grid(kept, arena, before, kSamples);
   const std::size_t blocks_before = kept.block_count();
   for (const CellKey key : erased) {
     kept.erase(key);
