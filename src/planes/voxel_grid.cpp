@@ -1180,8 +1180,11 @@ float VoxelGrid::estimate_shape(Voxel& voxel, const BlockNeighbourhood& around,
       }
     }
   }
+  // A shape without an axis gets the axis of a sample laid out afresh: compact() moves
+  // unchanged blocks' samples with what the last estimate left in them.
   if (total.values[0] < limits.min_points) {
     voxel.shape = LocalShape::kTooFewPoints;
+    voxel.axis = Eigen::Vector3f::UnitZ();
     return 0.0f;
   }
   const Spread spread = spread_of(total);
@@ -1208,6 +1211,7 @@ float VoxelGrid::estimate_shape(Voxel& voxel, const BlockNeighbourhood& around,
     }
   } else {
     voxel.shape = LocalShape::kScattered;
+    voxel.axis = Eigen::Vector3f::UnitZ();
   }
   return thickness_m;
 }
