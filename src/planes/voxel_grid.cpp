@@ -382,29 +382,34 @@ void VoxelGrid::order_blocks(bool keep_placed) noexcept {
   }
 }
 
-std::uint64_t VoxelGrid::live_cells(std::uint32_t block) const noexcept {
+std::uint32_t VoxelGrid::slot_of_cell(std::uint32_t block, std::uint32_t bit) const noexcept {
   const Eigen::Matrix<std::int64_t, 3, 1> base = unpack_cell(block_keys_[block]) * kBlockEdge;
+  // A cell marked in its block always has its slot: blocks are marked on creation.
+  return find(pack_cell(base.x() + (bit >> 4), base.y() + ((bit >> 2) & 3), base.z() + (bit & 3)));
+}
+
+std::uint64_t VoxelGrid::live_cells(std::uint32_t block) const noexcept {
   std::uint64_t live = 0;
   for (std::uint64_t cells = block_masks_[block]; cells != 0; cells &= cells - 1) {
     const auto bit = static_cast<std::uint32_t>(std::countr_zero(cells));
-    // A cell marked in its block always has its slot: blocks are marked on creation.
-    const std::uint32_t slot =
-        find(pack_cell(base.x() + (bit >> 4), base.y() + ((bit >> 2) & 3), base.z() + (bit & 3)));
-    if (table_[slot].point_count > 0) {  // else every point was taken back out
+    if (table_[slot_of_cell(block, bit)].point_count > 0) {  // else every point was taken out
       live |= std::uint64_t{1} << bit;
     }
   }
   return live;
 }
 
-void VoxelGrid::load_block(std::uint32_t block, std::uint64_t live, std::size_t first) noexcept {
-  const Eigen::Matrix<std::int64_t, 3, 1> base = unpack_cell(block_keys_[block]) * kBlockEdge;
+std::uint64_t VoxelGrid::load_block(std::uint32_t block, std::uint64_t cells,
+                                    std::size_t first) noexcept {
+  std::uint64_t live = 0;
   std::size_t id = first;
-  for (std::uint64_t cells = live; cells != 0; cells &= cells - 1) {
+  for (; cells != 0; cells &= cells - 1) {
     const auto bit = static_cast<std::uint32_t>(std::countr_zero(cells));
-    const std::uint32_t slot =
-        find(pack_cell(base.x() + (bit >> 4), base.y() + ((bit >> 2) & 3), base.z() + (bit & 3)));
+    const std::uint32_t slot = slot_of_cell(block, bit);
     const VoxelSums& sums = table_[slot];
+    if (sums.point_count == 0) {
+      continue;  // every point taken back out
+    }
     if (keeping_shapes_) {
       dense_serial_[id] = serial_of_slot_[slot];
     }
@@ -413,7 +418,9 @@ void VoxelGrid::load_block(std::uint32_t block, std::uint64_t live, std::size_t 
     voxel = Voxel{};
     static_cast<VoxelSums&>(voxel) = sums;
     voxel.block = block;
+    live |= std::uint64_t{1} << bit;
   }
+  return live;
 }
 
 void VoxelGrid::lay_out_all_blocks() noexcept {
@@ -451,11 +458,9 @@ void VoxelGrid::lay_out_all_blocks() noexcept {
       prefetch_block(i + kAhead);
     }
     const std::uint32_t block = block_order_[i].block;
-    const std::uint64_t live = live_cells(block);
     block_first_[block] = static_cast<std::uint32_t>(count_);
-    live_masks_[block] = live;
-    load_block(block, live, count_);
-    count_ += static_cast<std::size_t>(std::popcount(live));
+    live_masks_[block] = load_block(block, block_masks_[block], count_);
+    count_ += static_cast<std::size_t>(std::popcount(live_masks_[block]));
   }
 }
 

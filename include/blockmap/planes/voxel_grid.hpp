@@ -308,10 +308,13 @@ class VoxelGrid {
   void order_blocks(bool keep_placed) noexcept;
   void lay_out_all_blocks() noexcept;
   void lay_out_changed_blocks() noexcept;
+  // The table slot of the cell at `bit` of a block (a cell marked in its block).
+  [[nodiscard]] std::uint32_t slot_of_cell(std::uint32_t block, std::uint32_t bit) const noexcept;
   // The cells of a block that hold points now (reads the table).
   [[nodiscard]] std::uint64_t live_cells(std::uint32_t block) const noexcept;
-  // Reads the samples of `live` cells of a block from the table into the layout at `first`.
-  void load_block(std::uint32_t block, std::uint64_t live, std::size_t first) noexcept;
+  // Reads the samples of a block's `cells` that hold points from the table into the layout
+  // at `first`; returns those cells (one pass: the full layout needs no count first).
+  std::uint64_t load_block(std::uint32_t block, std::uint64_t cells, std::size_t first) noexcept;
   // Moves `count` laid-out samples (sums, centred sums, serials) from `from` to `to`.
   void move_samples(std::size_t from, std::size_t to, std::size_t count) noexcept;
   // Marks the cell in its block, creating the block; false when that needs one too many.
