@@ -10,6 +10,7 @@
 find_package(Eigen3 3.3 REQUIRED NO_MODULE)
 find_package(CLI11 2.1 REQUIRED)
 find_package(nlohmann_json 3.10 REQUIRED)
+find_package(Threads REQUIRED)
 
 # Header-only packages whose CMake files point at /usr/include would put the host's C library
 # headers in front of a cross compiler's. In cross builds, expose only the package's own

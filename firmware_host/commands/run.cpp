@@ -1,5 +1,6 @@
-// `blockmap run [--config FILE] [--out DIR]`: the onboard mapper. With no robot attached (this
-// build has no device configuration yet), it maps the built-in simulated city block: the
+// `blockmap run [--config FILE] [--out DIR]`: the onboard mapper. With a [devices] table in the
+// config, the on-robot daemon maps from the robot's devices (daemon/daemon.hpp, config/README.md).
+// With no robot attached, it maps the built-in simulated city block: the
 // simulated Segway, lasers and GPS put their real bytes on loopback ports, the same device
 // layer as on the robot decodes them, and the pipeline (particle filter, scan projection,
 // sliding voxel window, Hough planes, plane registry) maps as it goes, writing the plane
@@ -11,11 +12,13 @@
 #include <vector>
 
 #include "blockmap/hal/config/config_error.hpp"
+#include "blockmap/hal/config/daemon_config.hpp"
 #include "blockmap/hal/sim/simulated_robot.hpp"
 #include "blockmap/hal/sim/world.hpp"
 #include "cli.hpp"
 #include "commands/commands.hpp"
 #include "commands/mapping.hpp"
+#include "daemon/daemon.hpp"
 
 namespace blockmap::cli {
 namespace {
@@ -30,7 +33,21 @@ struct RunOptions {
   int laps = 1;
 };
 
+// With a [devices] table in --config: the on-robot daemon (daemon/daemon.hpp).
+int run_on_devices(const RunOptions& options, std::ostream& err) {
+  daemon::DaemonOptions daemon_options;
+  daemon_options.config = hal::config::load_daemon_config(options.mapping.config);
+  daemon_options.config_source = options.mapping.config;
+  daemon_options.mapping = options.mapping;
+  daemon_options.seed = options.seed;
+  daemon_options.duration_s = options.duration_s;
+  return daemon::run_daemon(std::move(daemon_options), err);
+}
+
 int run(const RunOptions& options, std::ostream& err) {
+  if (!options.mapping.config.empty() && hal::config::file_has_devices(options.mapping.config)) {
+    return run_on_devices(options, err);
+  }
   hal::sim::World world = hal::sim::load_world(options.world);
   if (options.laps > 1) {
     // More laps of a loop: the path again from its first waypoint (a long-run test of
@@ -97,7 +114,8 @@ Command add_run_command(CLI::App& app) {
   options->mapping.out = "out/run";
   command->add_option("--config", options->mapping.config,
                       "a TOML file: [planes] the detector, [buildings] the fitter, [window] and "
-                      "[projection] the map (config/README.md)");
+                      "[projection] the map; [robot], [devices] and [daemon] the robot to map "
+                      "from (config/README.md)");
   command->add_option("--out", options->mapping.out, "the folder to write into")
       ->capture_default_str();
   command->add_option("--world", options->world, "the simulated world (built-in name or .toml)")

@@ -159,6 +159,27 @@ std::string TableReader::string_or(std::string_view key, std::string_view fallba
   return string(key);
 }
 
+std::vector<std::string> TableReader::string_list_or_empty(std::string_view key) {
+  const toml::node* node = find(key);
+  if (node == nullptr) {
+    read_.emplace(key);
+    return {};
+  }
+  const toml::array* array = node->as_array();
+  if (array == nullptr) {
+    fail(key, "expected a list of strings");
+  }
+  std::vector<std::string> strings;
+  for (std::size_t i = 0; i < array->size(); ++i) {
+    const std::optional<std::string> text = (*array)[i].value<std::string>();
+    if (!(*array)[i].is_string() || !text) {
+      fail(std::string(key) + "[" + std::to_string(i) + "]", "expected a string");
+    }
+    strings.push_back(*text);
+  }
+  return strings;
+}
+
 template <int N>
 Eigen::Matrix<double, N, 1> TableReader::fixed_vector(std::string_view key, const toml::node* node,
                                                       std::string_view shape,

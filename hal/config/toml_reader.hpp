@@ -50,6 +50,8 @@ class TableReader {
   [[nodiscard]] bool boolean_or(std::string_view key, bool fallback);
   [[nodiscard]] std::string string(std::string_view key);
   [[nodiscard]] std::string string_or(std::string_view key, std::string_view fallback);
+  // ["a", "b", ...]; empty when absent.
+  [[nodiscard]] std::vector<std::string> string_list_or_empty(std::string_view key);
   // A TOML offset date-time, as Unix seconds.
   [[nodiscard]] double unix_time(std::string_view key);
   // [x, y]

@@ -1,11 +1,15 @@
 #include "blockmap/hal/gps_observations.hpp"
 
+#include <algorithm>
 #include <chrono>
 
 namespace blockmap::hal {
 namespace {
 
 constexpr TimestampNs kDayNs = 86'400 * kNanosecondsPerSecond;
+// A delay this far from the smallest one is not a slow line but another clock (the receiver
+// set its time, or a date arrived): the delays start over.
+constexpr TimestampNs kClockJumpNs = 2 * kNanosecondsPerSecond;
 
 }  // namespace
 
@@ -45,10 +49,32 @@ bool FixConverter::convert(const msg::GpsFix& fix, TimestampNs near_ns,
   const bool differential = fix.quality == msg::GpsFixQuality::kDgps ||
                             fix.quality == msg::GpsFixQuality::kRtkFixed ||
                             fix.quality == msg::GpsFixQuality::kRtkFloat;
-  out = localize::GpsObservation{fix_stamp_ns(fix, near_ns), enu.x(), enu.y(),
-                                 fix.has_hdop ? fix.hdop : 1.0, differential};
+  const TimestampNs stamp_ns =
+      time_ == FixTime::kUtc ? fix_stamp_ns(fix, near_ns) : on_receive_clock(fix);
+  out = localize::GpsObservation{stamp_ns, enu.x(), enu.y(), fix.has_hdop ? fix.hdop : 1.0,
+                                 differential};
   up_m = enu.z();
   return true;
+}
+
+TimestampNs FixConverter::on_receive_clock(const msg::GpsFix& fix) {
+  const TimestampNs received_ns = fix.header.stamp_ns;
+  // The UTC day nearest to the receipt on the delay known so far (none yet: the same day).
+  const TimestampNs utc_ns = fix_stamp_ns(fix, received_ns - best_delay_ns_);
+  const TimestampNs delay_ns = received_ns - utc_ns;
+  if (delay_count_ > 0 &&
+      (delay_ns - best_delay_ns_ > kClockJumpNs || best_delay_ns_ - delay_ns > kClockJumpNs)) {
+    delay_count_ = 0;
+    ++clock_restarts_;
+  }
+  delays_ns_[delay_count_ % kDelayWindow] = delay_ns;
+  ++delay_count_;
+  const std::size_t kept = delay_count_ < kDelayWindow ? delay_count_ : kDelayWindow;
+  best_delay_ns_ = delays_ns_[0];
+  for (std::size_t i = 1; i < kept; ++i) {
+    best_delay_ns_ = std::min(best_delay_ns_, delays_ns_[i]);
+  }
+  return utc_ns + best_delay_ns_;
 }
 
 }  // namespace blockmap::hal

@@ -4,7 +4,9 @@
 // and by the simulated robot.
 #pragma once
 
+#include <array>
 #include <cstddef>
+#include <cstdint>
 #include <optional>
 
 #include "blockmap/core/time.hpp"
@@ -21,10 +23,24 @@ namespace blockmap::hal {
 // The fix's ellipsoidal position (NMEA gives the height above the geoid and its separation).
 [[nodiscard]] GeodeticPoint fix_point(const msg::GpsFix& fix);
 
+// Which clock a fix's stamp is on.
+enum class FixTime : std::uint8_t {
+  // The run's clock is UTC (simulated runs, recorded logs): the fix's own UTC.
+  kUtc,
+  // The receive stamps' clock (CLOCK_MONOTONIC on the robot), which UTC is not on: the fix's
+  // UTC moved by the smallest delay from UTC to receipt among the last kDelayWindow fixes.
+  // The smallest is the one least held up by the serial line and the reader; a window rather
+  // than all time, so that the two clocks' drift (a few ms an hour) is followed.
+  kReceiveClock,
+};
+
 class FixConverter {
  public:
-  FixConverter() = default;
-  explicit FixConverter(const GeodeticPoint& origin) : frame_(origin) {}
+  static constexpr std::size_t kDelayWindow = 32;
+
+  explicit FixConverter(FixTime time = FixTime::kUtc) : time_(time) {}
+  explicit FixConverter(const GeodeticPoint& origin, FixTime time = FixTime::kUtc)
+      : frame_(origin), time_(time) {}
 
   // A usable fix (valid, with position and time) becomes an observation and its height in
   // the local frame; false (counted) otherwise.
@@ -32,10 +48,22 @@ class FixConverter {
                double& up_m);
   [[nodiscard]] const std::optional<LocalEnuFrame>& frame() const noexcept { return frame_; }
   [[nodiscard]] std::size_t without_position() const noexcept { return without_position_; }
+  // kReceiveClock: the delay from UTC to the receive clock in use (receive clock - UTC), ns.
+  [[nodiscard]] TimestampNs receive_delay_ns() const noexcept { return best_delay_ns_; }
+  // kReceiveClock: how often the delays started over (the receiver's clock jumped).
+  [[nodiscard]] std::size_t clock_restarts() const noexcept { return clock_restarts_; }
 
  private:
+  // The fix's stamp on the receive clock, learning the delay (kReceiveClock).
+  [[nodiscard]] TimestampNs on_receive_clock(const msg::GpsFix& fix);
+
   std::optional<LocalEnuFrame> frame_;
+  FixTime time_ = FixTime::kUtc;
   std::size_t without_position_ = 0;
+  std::array<TimestampNs, kDelayWindow> delays_ns_{};
+  std::size_t delay_count_ = 0;  // delays seen since the last restart
+  TimestampNs best_delay_ns_ = 0;
+  std::size_t clock_restarts_ = 0;
 };
 
 }  // namespace blockmap::hal

@@ -1,0 +1,81 @@
+// The on-robot daemon (issue 9): `blockmap run --config FILE` with a [devices] table.
+//
+//   reader threads (DeviceLink)         pipeline thread                    main thread
+//   CAN  -> SegwayBase    -> queue --\
+//   tty  -> Lms2xxScanner -> queue ---+-> merge by time -> Mapper -> outputs, health.jsonl
+//   tty  -> GpsReceiver   -> queue --/                                     signals, device
+//                                                                          state changes
+//
+// One reader thread per device does the blocking I/O and the decoding and keeps its device
+// open (device_link.hpp); the pipeline thread owns every piece of algorithm state and the
+// outputs; the main thread waits for SIGINT/SIGTERM or the end of a simulated robot's run and
+// reports devices coming and going. The merge hands the mapper the oldest waiting message
+// that no link can still undercut (each link's watermark: it will publish nothing older), so
+// the mapper sees the devices' messages in time order however the threads are scheduled.
+// With `[devices] robot = "sim:WORLD"` one thread runs the simulated robot faster than real
+// time in place of the readers, through the same queues and merge.
+#pragma once
+
+#include <atomic>
+#include <iosfwd>
+#include <memory>
+#include <string>
+
+#include "blockmap/hal/can_bus.hpp"
+#include "blockmap/hal/config/daemon_config.hpp"
+#include "commands/mapping.hpp"
+
+namespace blockmap::cli::daemon {
+
+// Where a can: address is opened. The robot's is SocketCAN; tests give their own (the host's
+// kernel has no CAN).
+class CanOpener {
+ public:
+  CanOpener() = default;
+  CanOpener(const CanOpener&) = delete;
+  CanOpener& operator=(const CanOpener&) = delete;
+  virtual ~CanOpener() = default;
+  [[nodiscard]] virtual hal::CanBus& bus() = 0;
+  // Empty when it worked, else one line why not.
+  [[nodiscard]] virtual std::string open(const hal::DeviceAddress& address) = 0;
+  virtual void close() = 0;
+};
+
+// SocketCAN.
+[[nodiscard]] std::unique_ptr<CanOpener> socket_can_opener();
+
+struct DaemonOptions {
+  hal::config::DaemonConfig config;
+  std::string config_source;  // the file, for messages
+  MappingOptions mapping;     // out, config (the mapping tables), udp, budget
+  std::uint64_t seed = 1;     // sim:
+  double duration_s = 0.0;    // sim: stop after this much simulated time (0: its whole path)
+};
+
+class Daemon {
+ public:
+  explicit Daemon(DaemonOptions options, std::unique_ptr<CanOpener> can = socket_can_opener());
+  ~Daemon();
+  Daemon(const Daemon&) = delete;
+  Daemon& operator=(const Daemon&) = delete;
+
+  // Checks everything, takes the memory, prints the budget and opens the devices, printing
+  // each one's state; empty when mapping can start, else one line why not.
+  [[nodiscard]] std::string start(std::ostream& err);
+  // Maps until stop() (or a signal through request_stop()), or until a simulated robot's run
+  // ends; then flushes, writes the final outputs and reports. The process's exit status.
+  int run(std::ostream& err);
+  // Async-signal-safe: asks run() to finish.
+  void request_stop() noexcept { stop_requested_.store(true, std::memory_order_release); }
+
+ private:
+  class Impl;
+  std::unique_ptr<Impl> impl_;
+  std::atomic<bool> stop_requested_{false};
+};
+
+// `blockmap run --config FILE` when FILE has a [devices] table: the daemon, stopped by
+// SIGINT/SIGTERM. Returns the exit status.
+int run_daemon(DaemonOptions options, std::ostream& err);
+
+}  // namespace blockmap::cli::daemon

@@ -1,0 +1,171 @@
+// The on-robot daemon (firmware_host/daemon): the simulated robot through the reader-queue-
+// pipeline threads maps exactly what the single-threaded run maps; devices that are not there
+// are reported and retried while the daemon keeps running; a stop request flushes everything.
+#include "daemon/daemon.hpp"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <thread>
+
+#include "cli.hpp"
+#include "cli_runner.hpp"
+
+namespace blockmap::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::read_file;
+using testing::run_cli;
+
+fs::path scratch(const std::string& name) {
+  return fs::temp_directory_path() / ("blockmap_daemon_" + name + "_" + std::to_string(::getpid()));
+}
+
+fs::path write_config(const std::string& name, const std::string& text) {
+  fs::path path = scratch(name + ".toml");
+  std::ofstream(path) << text;
+  return path;
+}
+
+// planes.json without its "seconds" (the wall time, which differs between any two runs).
+std::string without_seconds(const std::string& planes_json) {
+  nlohmann::json list = nlohmann::json::parse(planes_json);
+  list.erase("seconds");
+  return list.dump();
+}
+
+TEST(Daemon, TheSimulatedRobotThroughTheThreadsMapsWhatTheSingleThreadedRunMaps) {
+  const fs::path threaded = scratch("threaded");
+  const fs::path single = scratch("single");
+  const fs::path config = write_config("sim", "[devices]\nrobot = \"sim:usc_block\"\n");
+  const testing::CliResult daemon = run_cli(
+      {"run", "--config", config.string(), "--duration-s", "25", "--out", threaded.string()});
+  ASSERT_EQ(daemon.status, kExitOk) << daemon.err;
+  EXPECT_EQ(daemon.err.rfind("memory: ", 0), 0u) << "the memory report comes first";
+  EXPECT_NE(daemon.err.find("device sim:usc_block: the simulated robot"), std::string::npos)
+      << daemon.err;
+  const testing::CliResult run = run_cli({"run", "--duration-s", "25", "--out", single.string()});
+  ASSERT_EQ(run.status, kExitOk) << run.err;
+  // The merge hands the mapper the messages in time order however the threads ran: the
+  // same stream, trajectory and map, byte for byte.
+  for (const char* file : {"planes.bin", "planes.jsonl", "trajectory.csv", "buildings.json"}) {
+    const std::string a = read_file(threaded / file);
+    EXPECT_FALSE(a.empty()) << file;
+    EXPECT_TRUE(a == read_file(single / file)) << file << " differs";
+  }
+  EXPECT_EQ(without_seconds(read_file(threaded / "planes.json")),
+            without_seconds(read_file(single / "planes.json")));
+  // Health: a record per second of data, each device's counters and the mapper's.
+  std::istringstream lines(read_file(threaded / "health.jsonl"));
+  std::size_t records = 0;
+  nlohmann::json last;
+  for (std::string line; std::getline(lines, line); ++records) {
+    last = nlohmann::json::parse(line);
+  }
+  EXPECT_GE(records, 20u);
+  ASSERT_EQ(last["devices"].size(), 4u) << last.dump();
+  for (const nlohmann::json& device : last["devices"]) {
+    EXPECT_EQ(device["state"], "up") << device.dump();
+    EXPECT_GT(device["messages"].get<int>(), 0) << device.dump();
+    EXPECT_EQ(device["rejected"].get<int>(), 0) << device.dump();
+  }
+  EXPECT_GT(last["mapper"]["points"].get<double>(), 100000.0);
+  EXPECT_EQ(last["mapper"]["late"].get<int>(), 0);
+  fs::remove_all(threaded);
+  fs::remove_all(single);
+  fs::remove(config);
+}
+
+TEST(Daemon, ABadConfigIsOneLineAndNothingStarts) {
+  const fs::path out = scratch("bad");
+  const fs::path config =
+      write_config("bad", "[devices]\nbase = \"can:can0\"\nlasers = [\"serial:/dev/x@123\"]\n");
+  const testing::CliResult result =
+      run_cli({"run", "--config", config.string(), "--out", out.string()});
+  EXPECT_NE(result.status, kExitOk);
+  EXPECT_NE(result.err.find("devices.lasers[0]"), std::string::npos) << result.err;
+  EXPECT_EQ(result.err.find('\n'), result.err.size() - 1) << result.err;
+  EXPECT_FALSE(fs::exists(out)) << "nothing starts";
+  const fs::path three = write_config(
+      "three",
+      "[devices]\nbase = \"can:can0\"\nlasers = [\"serial:/a@9600\", \"serial:/b@9600\", "
+      "\"serial:/c@9600\"]\n");
+  const testing::CliResult too_many =
+      run_cli({"run", "--config", three.string(), "--out", out.string()});
+  EXPECT_NE(too_many.status, kExitOk);
+  EXPECT_NE(too_many.err.find("devices.lasers: 3 devices for the robot's 2 lasers"),
+            std::string::npos)
+      << too_many.err;
+  fs::remove(config);
+  fs::remove(three);
+}
+
+// A CAN interface that is never there (the host's kernel has no CAN).
+class AbsentCan final : public daemon::CanOpener {
+ public:
+  class NoBus final : public hal::CanBus {
+   protected:
+    hal::CanReceiveResult do_receive(hal::CanFrame& /*frame*/, TimestampNs /*timeout*/) override {
+      return {IoStatus::kDeviceLost, 0};
+    }
+    IoStatus do_send(const hal::CanFrame& /*frame*/) override { return IoStatus::kDeviceLost; }
+    IoStatus do_set_filters(std::span<const hal::CanFilter> /*filters*/) override {
+      return IoStatus::kOk;
+    }
+  };
+  hal::CanBus& bus() override { return bus_; }
+  std::string open(const hal::DeviceAddress& address) override {
+    ++opens;
+    return address.name + ": no such interface";
+  }
+  void close() override {}
+  std::atomic<int> opens{0};
+
+ private:
+  NoBus bus_;
+};
+
+TEST(Daemon, DevicesThatAreNotThereAreReportedAndRetriedUntilStopped) {
+  const fs::path out = scratch("absent");
+  daemon::DaemonOptions options;
+  options.config.base = hal::DeviceAddress{hal::DeviceBackend::kCan, "can7"};
+  options.config.gps =
+      hal::DeviceAddress{hal::DeviceBackend::kSerial, "/dev/blockmap-no-gps", 9600};
+  options.config.reconnect_first_s = 0.02;
+  options.config.reconnect_max_s = 0.08;
+  options.config_source = "robot.toml";
+  options.mapping.out = out.string();
+  auto can = std::make_unique<AbsentCan>();
+  AbsentCan* can_seen = can.get();
+  daemon::Daemon daemon(options, std::move(can));
+  std::ostringstream err;
+  ASSERT_EQ(daemon.start(err), "");
+  EXPECT_NE(err.str().find("device base: connecting (can7: no such interface); retrying"),
+            std::string::npos)
+      << err.str();
+  EXPECT_NE(err.str().find("device gps: connecting (serial port /dev/blockmap-no-gps"),
+            std::string::npos)
+      << err.str();
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(600));
+    daemon.request_stop();
+  });
+  EXPECT_EQ(daemon.run(err), kExitOk) << err.str();
+  stopper.join();
+  // Backing off: 20, 40, 80, 80 ... ms, so a handful of tries in 0.6 s, not hundreds.
+  EXPECT_GE(can_seen->opens.load(), 4);
+  EXPECT_LE(can_seen->opens.load(), 15);
+  EXPECT_NE(err.str().find("daemon: stopping"), std::string::npos) << err.str();
+  EXPECT_TRUE(fs::exists(out / "planes.json")) << "the outputs are written at the end";
+  fs::remove_all(out);
+}
+
+}  // namespace
+}  // namespace blockmap::cli

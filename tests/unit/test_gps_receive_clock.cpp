@@ -1,0 +1,65 @@
+// GPS fixes on the robot's receive clock (FixConverter, FixTime::kReceiveClock): NMEA carries
+// UTC, the robot stamps with CLOCK_MONOTONIC, and the fix must land on the monotonic clock at
+// the time it was measured, through a serial line that delays each fix by a varying amount.
+#include <gtest/gtest.h>
+
+#include "blockmap/hal/gps_observations.hpp"
+
+namespace blockmap::hal {
+namespace {
+
+constexpr TimestampNs kMs = 1'000'000;
+
+// A valid fix measured at `utc_ms_of_day`, received at `received_ns` on the robot's clock.
+msg::GpsFix fix_at(std::int32_t utc_ms_of_day, TimestampNs received_ns) {
+  msg::GpsFix fix;
+  fix.header.stamp_ns = received_ns;
+  fix.valid = true;
+  fix.has_position = true;
+  fix.has_time = true;
+  fix.utc_milliseconds_of_day = utc_ms_of_day;
+  fix.latitude_deg = 34.02;
+  fix.longitude_deg = -118.28;
+  return fix;
+}
+
+TEST(GpsReceiveClock, TheLeastDelayedFixSetsTheClockAndLaterFixesKeepIt) {
+  FixConverter converter(FixTime::kReceiveClock);
+  // The monotonic clock read 5,000 s at 12:00:00.000 UTC; each fix takes 80-200 ms to arrive.
+  const TimestampNs boot_offset_ns = 5'000'000 * kMs - 43'200'000 * kMs;
+  const TimestampNs delays_ms[] = {200, 150, 80, 190, 120, 95};
+  localize::GpsObservation observation;
+  double up_m = 0.0;
+  for (int i = 0; i < 6; ++i) {
+    const std::int32_t utc_ms = 43'200'000 + i * 250;
+    const TimestampNs received = boot_offset_ns + utc_ms * kMs + delays_ms[i] * kMs;
+    ASSERT_TRUE(converter.convert(fix_at(utc_ms, received), 0, observation, up_m));
+    // Never later than its receipt: the pipeline's merge has released nothing past it.
+    EXPECT_LE(observation.stamp_ns, received);
+  }
+  // From the third fix on, the clock is the 80 ms one: the last fix at its UTC + 80 ms.
+  EXPECT_EQ(converter.receive_delay_ns(), boot_offset_ns + 80 * kMs);
+  EXPECT_EQ(observation.stamp_ns, boot_offset_ns + (43'200'000 + 5 * 250) * kMs + 80 * kMs);
+}
+
+TEST(GpsReceiveClock, MidnightKeepsTheClockAndAJumpStartsItOver) {
+  FixConverter converter(FixTime::kReceiveClock);
+  localize::GpsObservation observation;
+  double up_m = 0.0;
+  const TimestampNs day_ms = 86'400'000;
+  // 23:59:59.750 then 00:00:00.000 of the next day: a quarter second later on the robot.
+  const TimestampNs received_before = 1'000'000 * kMs;
+  ASSERT_TRUE(converter.convert(fix_at(static_cast<std::int32_t>(day_ms - 250), received_before), 0,
+                                observation, up_m));
+  const TimestampNs before_ns = observation.stamp_ns;
+  ASSERT_TRUE(converter.convert(fix_at(0, received_before + 250 * kMs), 0, observation, up_m));
+  EXPECT_EQ(observation.stamp_ns - before_ns, 250 * kMs);
+  EXPECT_EQ(converter.clock_restarts(), 0u);
+  // The receiver sets its clock 10 s on: the delays start over rather than keep the old one.
+  ASSERT_TRUE(converter.convert(fix_at(10'500, received_before + 500 * kMs), 0, observation, up_m));
+  EXPECT_EQ(converter.clock_restarts(), 1u);
+  EXPECT_EQ(observation.stamp_ns, received_before + 500 * kMs);
+}
+
+}  // namespace
+}  // namespace blockmap::hal
