@@ -37,6 +37,8 @@ Command add_simulate_command(CLI::App& app);
 Command add_run_command(CLI::App& app);
 // `blockmap replay DIR [--out DIR2]`: the onboard pipeline over recorded device logs.
 Command add_replay_command(CLI::App& app);
+// `blockmap play DIR --pty-dir PATH`: recorded device logs onto pseudo-terminals and CAN.
+Command add_play_command(CLI::App& app);
 // `blockmap import TRAJECTORY --origin ... --out DIR`: device logs from a reference trajectory.
 Command add_import_command(CLI::App& app);
 
