@@ -72,7 +72,8 @@ std::string MappingSession::start(const pipeline::MapperConfig& config,
     cloud_.emplace();
     mapper_.set_point_sink(&*cloud_);
   }
-  return outputs_.open(options.out, mapper_.registry().change_capacity(), options.udp);
+  return outputs_.open(options.out, mapper_.registry().change_capacity(), options.udp,
+                       options.resume);
 }
 
 void MappingSession::pump() {

@@ -27,6 +27,7 @@ struct MappingOptions {
   double budget_mib = 64.0;
   bool trajectory_only = false;  // localize only: trajectory.csv, no planes
   bool cloud = false;            // also cloud.ply: every projected point (kept in memory)
+  bool resume = false;           // carry on the streams in `out` (a resumed map): append to them
 };
 
 // Every projected point, for cloud.ply. A tool for looking at a run afterwards, not part of

@@ -30,6 +30,7 @@
 #include "blockmap/hal/sim/world.hpp"
 #include "cli.hpp"
 #include "daemon/device_link.hpp"
+#include "daemon/snapshot.hpp"
 
 namespace blockmap::cli::daemon {
 namespace {
@@ -392,17 +393,43 @@ class SimSource final : public Source {
 // what the mapper produced goes to the outputs; every health_every_s of data, a health record.
 class Pipeline {
  public:
-  Pipeline(Source& source, MappingSession& session, const hal::config::DaemonConfig& config)
+  // `origin`: the local frame's, when known (a resumed map's, a simulated world's).
+  Pipeline(Source& source, MappingSession& session, const hal::config::DaemonConfig& config,
+           const std::optional<hal::GeodeticPoint>& origin)
       : source_(source),
         session_(session),
-        fixes_(source.origin() ? hal::FixConverter(*source.origin(), source.fix_time())
-                               : hal::FixConverter(source.fix_time())),
+        fixes_(origin ? hal::FixConverter(*origin, source.fix_time())
+                      : hal::FixConverter(source.fix_time())),
         scans_(source.inlets.scans.size()),
         have_scan_(source.inlets.scans.size(), false),
-        health_every_ns_(ns_from_seconds(config.health_every_s)) {}
+        health_every_ns_(ns_from_seconds(config.health_every_s)),
+        snapshot_every_ns_(ns_from_seconds(config.snapshot_every_s)) {}
 
   // Owns health.jsonl from here (nullptr: none).
   void set_health_file(std::FILE* file) noexcept { health_ = file; }
+  void set_snapshots(SnapshotWriter* snapshots) noexcept { snapshots_ = snapshots; }
+
+  // A snapshot of the map now (the pipeline thread, or any thread once it has ended); the
+  // last one stays when this one cannot be written.
+  void write_snapshot(std::ostream* err) {
+    if (snapshots_ == nullptr) {
+      return;
+    }
+    SnapshotHeader header;
+    header.stamp_ns = last_stamp_ns_;
+    header.next_id = session_.mapper().registry().next_id();
+    if (fixes_.frame()) {
+      header.origin = fixes_.frame()->origin();
+    }
+    const std::size_t count = session_.mapper().save_planes(snapshots_->planes());
+    if (const std::string problem = snapshots_->write(header, count); !problem.empty()) {
+      ++snapshot_failures_;
+      if (err != nullptr) {
+        *err << "daemon: snapshot: " << problem << '\n';
+      }
+    }
+  }
+  [[nodiscard]] std::uint64_t snapshot_failures() const noexcept { return snapshot_failures_; }
 
   // The thread's body: runs until `drain` is set and everything published is mapped, or the
   // source has finished and everything is mapped.
@@ -415,6 +442,7 @@ class Pipeline {
       const std::size_t fed = feed_up_to(watermark_ns);
       session_.pump();
       write_health_when_due();
+      write_snapshot_when_due();
       if ((draining || finished) && fed == 0 && !refill()) {
         break;
       }
@@ -497,6 +525,19 @@ class Pipeline {
     return fed;
   }
 
+  void write_snapshot_when_due() {
+    if (snapshots_ == nullptr || snapshot_every_ns_ == 0 || first_stamp_ns_ == kEndOfTime) {
+      return;
+    }
+    if (next_snapshot_ns_ == 0) {
+      next_snapshot_ns_ = first_stamp_ns_ + snapshot_every_ns_;
+    }
+    if (last_stamp_ns_ >= next_snapshot_ns_) {
+      write_snapshot(nullptr);  // a failure is counted in health.jsonl
+      next_snapshot_ns_ = last_stamp_ns_ + snapshot_every_ns_;
+    }
+  }
+
   void write_health_when_due() {
     if (last_stamp_ns_ == 0 || first_stamp_ns_ == kEndOfTime) {
       return;
@@ -547,13 +588,16 @@ class Pipeline {
         health_,
         "],\"mapper\":{\"base_samples\":%llu,\"fixes\":%llu,\"fixes_rejected\":%llu,"
         "\"scans\":%llu,\"scans_projected\":%llu,\"points\":%llu,\"extractions\":%llu,"
-        "\"final_planes\":%zu,\"late\":%llu,\"scans_refused\":%llu}}\n",
+        "\"final_planes\":%zu,\"late\":%llu,\"scans_refused\":%llu},"
+        "\"snapshots\":%llu,\"snapshot_failures\":%llu}\n",
         static_cast<unsigned long long>(c.base_samples), static_cast<unsigned long long>(c.fixes),
         static_cast<unsigned long long>(c.fixes_rejected), static_cast<unsigned long long>(c.scans),
         static_cast<unsigned long long>(c.scans_projected),
         static_cast<unsigned long long>(c.points), static_cast<unsigned long long>(c.extractions),
         session_.mapper().final_planes().size(), static_cast<unsigned long long>(c.messages_late),
-        static_cast<unsigned long long>(c.scans_refused_full));
+        static_cast<unsigned long long>(c.scans_refused_full),
+        static_cast<unsigned long long>(snapshots_ != nullptr ? snapshots_->written() : 0),
+        static_cast<unsigned long long>(snapshot_failures_));
     std::fflush(health_);
   }
 
@@ -574,7 +618,11 @@ class Pipeline {
   TimestampNs last_stamp_ns_ = 0;
   TimestampNs health_every_ns_;
   TimestampNs next_health_ns_ = 0;
+  TimestampNs snapshot_every_ns_;
+  TimestampNs next_snapshot_ns_ = 0;
   std::FILE* health_ = nullptr;
+  SnapshotWriter* snapshots_ = nullptr;
+  std::uint64_t snapshot_failures_ = 0;
 };
 
 }  // namespace
@@ -629,25 +677,52 @@ class Daemon::Impl {
     } else {
       source_ = std::make_unique<RobotSource>(options_.config, robot, std::move(can_), clock_);
     }
+    // A map left by a run that ended (or crashed) in the same folder is carried on: its planes
+    // come back, its frame is kept, and the streams are appended to.
+    std::optional<Snapshot> resumed;
+    if (!options_.mapping.out.empty()) {
+      std::string problem;
+      resumed = read_snapshot(options_.mapping.out, problem);
+      if (!problem.empty()) {
+        return problem;
+      }
+      options_.mapping.resume = resumed.has_value();
+    }
     if (std::string problem = session_.start(mapper_config, options_.mapping, err, err);
         !problem.empty()) {
       return problem;
     }
-    if (source_->queue_bytes() > 0) {
-      char line[128];
-      std::snprintf(line, sizeof line, "daemon: device queues %.2f MiB, taken at start-up\n",
-                    static_cast<double>(source_->queue_bytes()) / kMiB);
-      err << line;
+    std::optional<hal::GeodeticPoint> origin = source_->origin();
+    if (resumed) {
+      session_.mapper().restore_planes(resumed->planes);
+      if (resumed->header.origin) {
+        origin = resumed->header.origin;
+      }
+      err << "resumed the map in " << options_.mapping.out << ": " << resumed->planes.size()
+          << " planes, new ids from " << session_.mapper().registry().next_id() << '\n';
     }
+    if (!options_.mapping.out.empty()) {
+      snapshots_.emplace(options_.mapping.out, mapper_config.registry.max_live_planes +
+                                                   mapper_config.registry.max_final_planes);
+    }
+    char line[160];
+    std::snprintf(line, sizeof line,
+                  "daemon: device queues %.2f MiB, snapshot buffers %.2f MiB, taken at start-up\n",
+                  static_cast<double>(source_->queue_bytes()) / kMiB,
+                  static_cast<double>(snapshots_ ? snapshots_->buffer_bytes() : 0) / kMiB);
+    err << line;
     if (config.lock_memory && mlockall(MCL_CURRENT | MCL_FUTURE) != 0) {
       err << "daemon: lock_memory: not permitted (" << os_error(errno)
           << "; needs CAP_IPC_LOCK or a memlock limit): pages may be swapped out\n";
     }
-    pipeline_.emplace(*source_, session_, options_.config);
+    pipeline_.emplace(*source_, session_, options_.config, origin);
+    if (snapshots_) {
+      pipeline_->set_snapshots(&*snapshots_);
+    }
     if (!options_.mapping.out.empty()) {
       const std::filesystem::path path =
           std::filesystem::path(options_.mapping.out) / "health.jsonl";
-      health_ = std::fopen(path.c_str(), "w");
+      health_ = std::fopen(path.c_str(), resumed ? "a" : "w");
       if (health_ == nullptr) {
         return path.string() + ": cannot write (" + os_error(errno) + ")";
       }
@@ -678,6 +753,7 @@ class Daemon::Impl {
     source_->stop();
     drain.store(true, std::memory_order_release);
     pipeline_thread.join();
+    pipeline_->write_snapshot(&err);
     std::optional<hal::GeodeticPoint> origin;
     if (pipeline_->fixes().frame()) {
       origin = pipeline_->fixes().frame()->origin();
@@ -730,6 +806,7 @@ class Daemon::Impl {
   hal::linux_backend::SteadyClock clock_;
   MappingSession session_;
   std::unique_ptr<Source> source_;
+  std::optional<SnapshotWriter> snapshots_;
   std::optional<Pipeline> pipeline_;
   std::FILE* health_ = nullptr;
   std::array<char, 1 << 16> health_buffer_{};

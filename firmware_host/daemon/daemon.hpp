@@ -1,10 +1,9 @@
 // The on-robot daemon (issue 9): `blockmap run --config FILE` with a [devices] table.
 //
-//   reader threads (DeviceLink)         pipeline thread                    main thread
-//   CAN  -> SegwayBase    -> queue --\
-//   tty  -> Lms2xxScanner -> queue ---+-> merge by time -> Mapper -> outputs, health.jsonl
-//   tty  -> GpsReceiver   -> queue --/                                     signals, device
-//                                                                          state changes
+//   reader threads (DeviceLink)          pipeline thread              main thread
+//   CAN -> SegwayBase    -> queue  |
+//   tty -> Lms2xxScanner -> queue  |-> merge by time -> Mapper        signals, devices
+//   tty -> GpsReceiver   -> queue  |   -> outputs, health.jsonl      coming and going
 //
 // One reader thread per device does the blocking I/O and the decoding and keeps its device
 // open (device_link.hpp); the pipeline thread owns every piece of algorithm state and the

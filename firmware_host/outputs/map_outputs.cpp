@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <fstream>
+#include <iterator>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -19,31 +22,70 @@ namespace stream = hal::protocol::plane_stream;
 constexpr std::size_t kPathDecimation = 10;
 constexpr const char* kTrajectoryHeader = "t_s,x_m,y_m,z_m,roll_rad,pitch_rad,yaw_rad\n";
 
+std::uintmax_t whole_lines_bytes(const fs::path& path) {
+  std::ifstream file(path, std::ios::binary);
+  const std::string text((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+  const std::size_t last = text.rfind('\n');
+  return last == std::string::npos ? 0 : last + 1;
+}
+
+std::uintmax_t whole_records_bytes(const fs::path& path) {
+  std::ifstream file(path, std::ios::binary);
+  const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(file)),
+                                        std::istreambuf_iterator<char>());
+  if (bytes.size() < stream::kMagic.size() ||
+      !std::equal(stream::kMagic.begin(), stream::kMagic.end(), bytes.begin())) {
+    return 0;
+  }
+  std::size_t offset = stream::kMagic.size();
+  stream::UpdateHeader header;
+  while (stream::decode_update(std::span(bytes).subspan(offset), header,
+                               [](const stream::PlaneChange& /*change*/) {}) ==
+         stream::ParseError::kNone) {
+    offset += header.length;
+  }
+  return offset;
+}
+
 }  // namespace
 
 std::string MapOutputs::open(const fs::path& dir, std::size_t max_changes,
-                             const std::string& udp_destination) {
+                             const std::string& udp_destination, bool append) {
   dir_ = dir;
   std::error_code error;
   fs::create_directories(dir, error);
   if (error) {
     return "cannot create " + dir.string() + ": " + error.message();
   }
-  const auto open_file = [&](std::ofstream& file, const char* name, std::ios::openmode mode) {
+  // What a run before wrote, up to its last whole line or record (0: nothing to carry on).
+  const std::uintmax_t jsonl_kept = append ? whole_lines_bytes(dir / "planes.jsonl") : 0;
+  const std::uintmax_t buildings_kept = append ? whole_lines_bytes(dir / "buildings.jsonl") : 0;
+  const std::uintmax_t trajectory_kept = append ? whole_lines_bytes(dir / "trajectory.csv") : 0;
+  const std::uintmax_t binary_kept = append ? whole_records_bytes(dir / "planes.bin") : 0;
+  const auto open_file = [&](std::ofstream& file, const char* name, std::uintmax_t kept,
+                             std::ios::openmode mode) {
+    if (kept > 0) {
+      fs::resize_file(dir / name, kept, error);
+      mode |= std::ios::app;
+    }
     file.open(dir / name, mode);
-    return static_cast<bool>(file);
+    return !error && static_cast<bool>(file);
   };
-  if (!open_file(jsonl_, "planes.jsonl", std::ios::out) ||
-      !open_file(buildings_jsonl_, "buildings.jsonl", std::ios::out) ||
-      !open_file(binary_, "planes.bin", std::ios::out | std::ios::binary) ||
-      !open_file(trajectory_, "trajectory.csv", std::ios::out)) {
+  if (!open_file(jsonl_, "planes.jsonl", jsonl_kept, std::ios::out) ||
+      !open_file(buildings_jsonl_, "buildings.jsonl", buildings_kept, std::ios::out) ||
+      !open_file(binary_, "planes.bin", binary_kept, std::ios::out | std::ios::binary) ||
+      !open_file(trajectory_, "trajectory.csv", trajectory_kept, std::ios::out)) {
     return "cannot write into " + dir.string();
   }
-  binary_.write(reinterpret_cast<const char*>(stream::kMagic.data()), stream::kMagic.size());
-  binary_bytes_ = stream::kMagic.size();
+  if (binary_kept == 0) {
+    binary_.write(reinterpret_cast<const char*>(stream::kMagic.data()), stream::kMagic.size());
+    binary_bytes_ = stream::kMagic.size();
+  }
   trajectory_out_ = &trajectory_;
   files_ = true;
-  *trajectory_out_ << kTrajectoryHeader;
+  if (trajectory_kept == 0) {
+    *trajectory_out_ << kTrajectoryHeader;
+  }
   record_.resize(stream::kRecordHeaderBytes + max_changes * stream::kMaxEntryBytes);
   if (!udp_destination.empty()) {
     return udp_.open(udp_destination);

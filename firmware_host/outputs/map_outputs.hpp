@@ -28,9 +28,12 @@ namespace blockmap::cli {
 class MapOutputs {
  public:
   // Creates `dir` and opens the stream files; `max_changes` bounds one update (the binary
-  // record buffer is sized for it here, once). Empty when it worked, otherwise why not.
+  // record buffer is sized for it here, once). With `append` (a resumed map), the streams a
+  // run before left in `dir` are carried on: each is cut after its last whole line or record
+  // (a crash may have torn the last one) and written on from there. Empty when it worked,
+  // otherwise why not.
   [[nodiscard]] std::string open(const std::filesystem::path& dir, std::size_t max_changes,
-                                 const std::string& udp_destination);
+                                 const std::string& udp_destination, bool append = false);
   // Only the trajectory, to `trajectory` (replay without --out) or into dir/trajectory.csv.
   void open_trajectory_only(std::ostream& trajectory);
   [[nodiscard]] std::string open_trajectory_only(const std::filesystem::path& dir);

@@ -515,6 +515,41 @@ void PlaneRegistry::finalize_outside(const Eigen::AlignedBox2d& window_m) noexce
   }
 }
 
+std::size_t PlaneRegistry::save(std::span<SavedPlane> out) noexcept {
+  std::size_t count = 0;
+  const auto keep = [&](const msg::PlanePatch& plane, const planes::PointMoments& moments) {
+    if (count < out.size()) {
+      out[count++] = SavedPlane{plane, moments};
+      return;
+    }
+    // Full: the smallest saved plane makes room for a bigger one (as store_final does).
+    const auto smallest = std::min_element(
+        out.begin(), out.end(),
+        [](const SavedPlane& a, const SavedPlane& b) { return a.plane.support < b.plane.support; });
+    if (smallest != out.end() && smallest->plane.support < plane.support) {
+      *smallest = SavedPlane{plane, moments};
+    }
+  };
+  for (std::size_t i = 0; i < final_count_; ++i) {
+    keep(final_[i], final_moments_[i]);
+  }
+  for (const LivePlane& plane : live_) {
+    if (plane.in_use && plane.reported.id != 0) {
+      msg::PlanePatch now = plane.reported;
+      combine(plane, now);
+      keep(now, points_of(plane));
+    }
+  }
+  return count;
+}
+
+void PlaneRegistry::restore(std::span<const SavedPlane> planes) noexcept {
+  for (const SavedPlane& saved : planes) {
+    store_final(saved.plane, saved.moments);
+    next_id_ = std::max(next_id_, saved.plane.id + 1);
+  }
+}
+
 void PlaneRegistry::finalize_all() noexcept {
   for (LivePlane& plane : live_) {
     if (plane.in_use && plane.reported.id != 0) {

@@ -418,14 +418,25 @@ void Mapper::extract(TimestampNs stamp_ns) noexcept {
   refit_buildings();
 }
 
+void Mapper::restore_planes(std::span<const map::SavedPlane> planes) noexcept {
+  registry_.restore(planes);
+  if (config_.fit_buildings) {
+    fit_buildings_to_map();
+  }
+}
+
+void Mapper::fit_buildings_to_map() noexcept {
+  building_fitter_.begin();
+  registry_.for_each_plane([this](const msg::PlanePatch& plane) { building_fitter_.add(plane); });
+  building_fitter_.finish();
+}
+
 void Mapper::refit_buildings() noexcept {
   // The buildings follow from the registry's planes alone: no change there, none here.
   if (!config_.fit_buildings || registry_.changes().empty()) {
     return;
   }
-  building_fitter_.begin();
-  registry_.for_each_plane([this](const msg::PlanePatch& plane) { building_fitter_.add(plane); });
-  building_fitter_.finish();
+  fit_buildings_to_map();
 }
 
 void Mapper::TileLeaving::on_evicted(const map::VoxelWindow::EvictedTile& tile) noexcept {

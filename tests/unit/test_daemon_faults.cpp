@@ -6,7 +6,11 @@
 // and map the block's walls. The host's kernel has no CAN: the Segway's frames come
 // through an in-process bus stamped on receipt, as the kernel stamps them.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 #include <unistd.h>
+
+#include <csignal>
+#include <set>
 
 #include <algorithm>
 #include <chrono>
@@ -25,6 +29,7 @@
 #include "cli_runner.hpp"
 #include "daemon/daemon.hpp"
 #include "daemon/log_player.hpp"
+#include "daemon/snapshot.hpp"
 
 namespace blockmap::cli {
 namespace {
@@ -91,6 +96,38 @@ class QueueCan final : public daemon::CanSink, public daemon::CanOpener {
   Bus bus_{*this};
 };
 
+// The daemon's CAN opener is the test's bus, which outlives it.
+class Borrowed final : public daemon::CanOpener {
+ public:
+  explicit Borrowed(QueueCan& can) : can_(can) {}
+  hal::CanBus& bus() override { return can_.bus(); }
+  std::string open(const hal::DeviceAddress& address) override { return can_.open(address); }
+  void close() override { can_.close(); }
+
+ private:
+  QueueCan& can_;
+};
+
+// The paper's robot on the player's lines: the base on the test's bus, the lasers and the GPS
+// on the ptys; quick to call a device silent or to reopen it.
+daemon::DaemonOptions options_on(const fs::path& ptys, const fs::path& out) {
+  daemon::DaemonOptions options;
+  options.config.base = hal::DeviceAddress{hal::DeviceBackend::kCan, "can0"};
+  options.config.lasers = {
+      hal::DeviceAddress{hal::DeviceBackend::kSerial, (ptys / "laser_horizontal").string(), 500000},
+      hal::DeviceAddress{hal::DeviceBackend::kSerial, (ptys / "laser_vertical").string(), 500000}};
+  options.config.gps =
+      hal::DeviceAddress{hal::DeviceBackend::kSerial, (ptys / "gps").string(), 9600};
+  options.config.silent_after_s = 1.0;
+  options.config.reconnect_first_s = 0.1;
+  options.config.reconnect_max_s = 0.4;
+  options.config.health_every_s = 0.5;
+  options.config.snapshot_every_s = 2.0;
+  options.config_source = "test";
+  options.mapping.out = out.string();
+  return options;
+}
+
 struct Wall {
   Eigen::Vector3d normal;
   double d = 0.0;
@@ -131,30 +168,7 @@ TEST(DaemonFaults, UnpluggedCorruptedAndSilentDevicesAreCountedAndTheWallsAreSti
   QueueCan can;
   daemon::LogPlayer player;
   ASSERT_EQ(player.open(logs, ptys, &can), "");
-  daemon::DaemonOptions options;
-  options.config.base = hal::DeviceAddress{hal::DeviceBackend::kCan, "can0"};
-  options.config.lasers = {
-      hal::DeviceAddress{hal::DeviceBackend::kSerial, (ptys / "laser_horizontal").string(), 500000},
-      hal::DeviceAddress{hal::DeviceBackend::kSerial, (ptys / "laser_vertical").string(), 500000}};
-  options.config.gps =
-      hal::DeviceAddress{hal::DeviceBackend::kSerial, (ptys / "gps").string(), 9600};
-  options.config.silent_after_s = 1.0;
-  options.config.reconnect_first_s = 0.1;
-  options.config.reconnect_max_s = 0.4;
-  options.config.health_every_s = 0.5;
-  options.config_source = "test";
-  options.mapping.out = (scratch / "out").string();
-  // The daemon's CAN opener is the test's bus, which outlives it.
-  class Borrowed final : public daemon::CanOpener {
-   public:
-    explicit Borrowed(QueueCan& can) : can_(can) {}
-    hal::CanBus& bus() override { return can_.bus(); }
-    std::string open(const hal::DeviceAddress& address) override { return can_.open(address); }
-    void close() override { can_.close(); }
-
-   private:
-    QueueCan& can_;
-  };
+  const daemon::DaemonOptions options = options_on(ptys, scratch / "out");
   daemon::Daemon mapper(options, std::make_unique<Borrowed>(can));
   std::ostringstream err;
   ASSERT_EQ(mapper.start(err), "") << err.str();
@@ -240,6 +254,125 @@ TEST(DaemonFaults, UnpluggedCorruptedAndSilentDevicesAreCountedAndTheWallsAreSti
   const auto large = std::count_if(walls.begin(), walls.end(),
                                    [](const Wall& wall) { return wall.support >= 5000.0; });
   EXPECT_GE(large, 2) << "walls with 5,000 points or more";
+  if (!HasFailure()) {
+    fs::remove_all(scratch);
+  }
+}
+
+}  // namespace
+}  // namespace blockmap::cli
+
+namespace blockmap::cli {
+namespace {
+
+// Maps the logs on fresh ptys in `scratch` for `seconds` of wall time (or to their end), then
+// stops the daemon as SIGTERM would. Returns the daemon's exit status; its stderr in `err`.
+int map_for(const fs::path& logs, const fs::path& scratch, double seconds, std::string& err) {
+  QueueCan can;
+  daemon::LogPlayer player;
+  if (const std::string problem = player.open(logs, scratch / "dev", &can); !problem.empty()) {
+    err = problem;
+    return -1;
+  }
+  daemon::Daemon mapper(options_on(scratch / "dev", scratch / "out"),
+                        std::make_unique<Borrowed>(can));
+  std::ostringstream log;
+  if (const std::string problem = mapper.start(log); !problem.empty()) {
+    err = log.str() + problem;
+    return -1;
+  }
+  std::atomic<bool> stop_playing{false};
+  std::thread playing([&] { static_cast<void>(player.play(stop_playing)); });
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+    stop_playing.store(true);
+    mapper.request_stop();
+  });
+  const int status = mapper.run(log);
+  stopper.join();
+  playing.join();
+  err = log.str();
+  return status;
+}
+
+std::size_t lines_in(const fs::path& path) {
+  std::istringstream text(read_file(path));
+  std::size_t lines = 0;
+  for (std::string line; std::getline(text, line);) {
+    ++lines;
+  }
+  return lines;
+}
+
+TEST(DaemonFaults, KilledMidRunItResumesFromItsSnapshotAndLosesNoPlane) {
+  std::string err_text;
+  const fs::path logs =
+      testing::simulated_logs({"--world", "usc_block", "--duration-s", "16"}, err_text);
+  ASSERT_FALSE(logs.empty()) << err_text;
+  const fs::path scratch =
+      fs::temp_directory_path() / ("blockmap_killed_" + std::to_string(::getpid()));
+  fs::remove_all(scratch);
+  fs::create_directories(scratch);
+
+  // The first run is a process of its own, killed with SIGKILL: no flush, no exit path.
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    std::string ignored;
+    static_cast<void>(map_for(logs, scratch, 60.0, ignored));
+    ::_exit(0);
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(9000));
+  ASSERT_EQ(::kill(child, SIGKILL), 0);
+  int wait_status = 0;
+  ASSERT_EQ(::waitpid(child, &wait_status, 0), child);
+  ASSERT_TRUE(WIFSIGNALED(wait_status));
+
+  const fs::path out = scratch / "out";
+  std::string error;
+  const std::optional<daemon::Snapshot> snapshot = daemon::read_snapshot(out, error);
+  ASSERT_TRUE(snapshot.has_value()) << "no snapshot after 9 s: " << error;
+  ASSERT_FALSE(snapshot->planes.empty());
+  ASSERT_TRUE(snapshot->header.origin.has_value()) << "the frame is kept";
+  const std::size_t lines_before = lines_in(out / "planes.jsonl");
+  ASSERT_GT(lines_before, 0u);
+
+  // The second run, in the same folder: it resumes and maps on.
+  const int status = map_for(logs, scratch, 5.0, err_text);
+  ASSERT_EQ(status, kExitOk) << err_text;
+  EXPECT_NE(err_text.find("resumed the map in " + out.string() + ": " +
+                          std::to_string(snapshot->planes.size()) + " planes"),
+            std::string::npos)
+      << err_text;
+
+  // Every plane of the snapshot is in the final list: under its id, or merged into a plane
+  // that took it (a "removed" change in the stream names it).
+  const nlohmann::json final_list = nlohmann::json::parse(read_file(out / "planes.json"));
+  std::set<std::uint32_t> final_ids;
+  for (const nlohmann::json& plane : final_list["planes"]) {
+    final_ids.insert(plane["id"].get<std::uint32_t>());
+  }
+  std::set<std::uint32_t> removed_ids;
+  std::istringstream stream(read_file(out / "planes.jsonl"));
+  std::size_t lines_after = 0;
+  for (std::string line; std::getline(stream, line); ++lines_after) {
+    const nlohmann::json update = nlohmann::json::parse(line);  // whole lines only
+    if (update.contains("removed")) {
+      for (const nlohmann::json& id : update["removed"]) {
+        removed_ids.insert(id.is_object() ? id["id"].get<std::uint32_t>()
+                                          : id.get<std::uint32_t>());
+      }
+    }
+  }
+  for (const map::SavedPlane& saved : snapshot->planes) {
+    EXPECT_TRUE(final_ids.contains(saved.plane.id) || removed_ids.contains(saved.plane.id))
+        << "plane " << saved.plane.id << " of the snapshot is lost";
+  }
+  // The streams were carried on, not started again.
+  EXPECT_GT(lines_after, lines_before);
+  const std::string binary = read_file(out / "planes.bin");
+  EXPECT_EQ(binary.rfind("BMPLANE1", 0), 0u);
+  EXPECT_EQ(binary.find("BMPLANE1", 1), std::string::npos) << "one stream, not two";
   if (!HasFailure()) {
     fs::remove_all(scratch);
   }

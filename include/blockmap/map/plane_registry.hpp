@@ -85,6 +85,13 @@ struct PlaneRegistryCounters {
   std::uint64_t reopened = 0;         // final planes seen again (the robot came back)
 };
 
+// A plane as a snapshot keeps it (issue 9: the map survives a crash): as reported, and the
+// moments of all its points, which is all a final plane is.
+struct SavedPlane {
+  msg::PlanePatch plane;
+  planes::PointMoments moments;
+};
+
 class PlaneRegistry final : public VoxelWindow::EvictionSink {
  public:
   void init(Arena& arena, const PlaneRegistryConfig& config);
@@ -105,6 +112,15 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   void finalize_outside(const Eigen::AlignedBox2d& window_m) noexcept;
   // The end of the run: every live plane is finalized.
   void finalize_all() noexcept;
+
+  // Every plane as it would be if the run ended now (final planes as they are, live ones as
+  // finalize_all() would make them), into `out`; how many (at most out.size(), the biggest
+  // first when more). The registry is left as it was.
+  [[nodiscard]] std::size_t save(std::span<SavedPlane> out) noexcept;
+  // Before the first update: the saved planes become final planes (the robot may be anywhere
+  // now; seen again, a plane is reopened under its id), and new ids continue after theirs.
+  void restore(std::span<const SavedPlane> planes) noexcept;
+  [[nodiscard]] std::uint32_t next_id() const noexcept { return next_id_; }
 
   // The final planes (in no particular order).
   [[nodiscard]] std::span<const msg::PlanePatch> final_planes() const noexcept {

@@ -196,6 +196,14 @@ class Mapper {
   [[nodiscard]] const MapperCounters& counters() const noexcept { return counters_; }
   [[nodiscard]] const map::VoxelWindow& window() const noexcept { return window_; }
   [[nodiscard]] const map::PlaneRegistry& registry() const noexcept { return registry_; }
+  // For snapshots (issue 9): every plane as it would be if the run ended now
+  // (PlaneRegistry::save); the map is left as it was.
+  [[nodiscard]] std::size_t save_planes(std::span<map::SavedPlane> out) noexcept {
+    return registry_.save(out);
+  }
+  // Resuming from a snapshot, before the first message: the saved planes become the map's
+  // final planes (reopened under their ids when seen again), and the buildings are fitted.
+  void restore_planes(std::span<const map::SavedPlane> planes) noexcept;
   [[nodiscard]] const planes::PlaneDetector& detector() const noexcept { return detector_; }
   [[nodiscard]] const localize::Localizer& localizer() const noexcept { return localizer_; }
   [[nodiscard]] const map::ProjectionCounters& projection(std::size_t laser) const noexcept {
@@ -233,6 +241,7 @@ class Mapper {
   void give_detector_the_window() noexcept;
   void extract(TimestampNs stamp_ns) noexcept;
   void refit_buildings() noexcept;
+  void fit_buildings_to_map() noexcept;
 
   // A tile leaving the window: the registry freezes what it held of its planes, and its
   // samples leave the detector's kept grid, which then goes on instead of starting over.
