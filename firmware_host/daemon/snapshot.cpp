@@ -23,7 +23,8 @@ using hal::protocol::write_le;
 constexpr std::array<std::uint8_t, 8> kMagic = {'B', 'M', 'S', 'N', 'A', 'P', '\r', '\n'};
 constexpr std::uint32_t kVersion = 1;
 constexpr std::size_t kHeaderBytes = 56;
-constexpr std::size_t kPlaneFixedBytes = std::size_t{8} + 9 * 8 + 10 * 8;
+// id, kind, polygon size, padding; 9 plane numbers; 10 moments (the second ones symmetric).
+constexpr std::size_t kPlaneFixedBytes = 8 + (std::size_t{9} * 8) + (std::size_t{10} * 8);
 constexpr std::size_t kVertexBytes = std::size_t{3} * 8;
 constexpr std::size_t kCrcBytes = 4;
 
