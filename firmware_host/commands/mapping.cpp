@@ -79,11 +79,20 @@ std::string MappingSession::start(const pipeline::MapperConfig& config,
 void MappingSession::pump() {
   while (mapper_.step()) {
     const pipeline::PlaneUpdate update = mapper_.update();
-    outputs_.write_update(update.stamp_ns, update.changes);
-    outputs_.write_buildings(update.stamp_ns, mapper_.buildings());
+    if (output_thread_ != nullptr) {
+      output_thread_->put_update(update.stamp_ns, update.changes);
+      output_thread_->put_buildings(update.stamp_ns, mapper_.buildings());
+    } else {
+      outputs_.write_update(update.stamp_ns, update.changes);
+      outputs_.write_buildings(update.stamp_ns, mapper_.buildings());
+    }
   }
-  outputs_.write_poses(
-      std::span<const localize::Pose3>(poses_.data(), mapper_.drain_final_poses(poses_)));
+  const std::span<const localize::Pose3> poses(poses_.data(), mapper_.drain_final_poses(poses_));
+  if (output_thread_ != nullptr) {
+    output_thread_->put_poses(poses);
+  } else {
+    outputs_.write_poses(poses);
+  }
 }
 
 std::string MappingSession::finish(const std::optional<hal::GeodeticPoint>& origin) {

@@ -17,6 +17,7 @@
 #include "blockmap/hal/sim/robot.hpp"
 #include "blockmap/pipeline/mapper.hpp"
 #include "outputs/map_outputs.hpp"
+#include "outputs/output_thread.hpp"
 
 namespace blockmap::cli {
 
@@ -57,10 +58,14 @@ class MappingSession {
                                   const MappingOptions& options, std::ostream& out,
                                   std::ostream& err);
   [[nodiscard]] const MapOutputs& outputs() const noexcept { return outputs_; }
+  [[nodiscard]] MapOutputs& outputs() noexcept { return outputs_; }
 
   [[nodiscard]] pipeline::Mapper& mapper() noexcept { return mapper_; }
-  // Steps the pipeline over what it was given and writes what it produced.
+  // Steps the pipeline over what it was given and writes what it produced: itself, or through
+  // `thread` once given one (the daemon: nothing is formatted or written on the pipeline
+  // thread). nullptr: itself again (the thread finished).
   void pump();
+  void write_through(OutputThread* thread) noexcept { output_thread_ = thread; }
   // No more input: the rest is processed, the planes finalized and the outputs closed. The
   // plane list's "seconds" is the wall time from start() to here. With the local frame's
   // place on Earth, the footprints are written in WGS-84 too; with options.cloud, cloud.ply.
@@ -72,6 +77,7 @@ class MappingSession {
   std::unique_ptr<Arena> arena_;
   pipeline::Mapper mapper_;
   MapOutputs outputs_;
+  OutputThread* output_thread_ = nullptr;
   std::vector<localize::Pose3> poses_;  // scratch for the localizer's poses
   std::optional<CloudRecorder> cloud_;  // options.cloud
   std::chrono::steady_clock::time_point started_;

@@ -41,6 +41,7 @@ int run_on_devices(const RunOptions& options, std::ostream& err) {
   daemon_options.mapping = options.mapping;
   daemon_options.seed = options.seed;
   daemon_options.duration_s = options.duration_s;
+  daemon_options.laps = options.laps;
   return daemon::run_daemon(std::move(daemon_options), err);
 }
 
@@ -49,18 +50,9 @@ int run(const RunOptions& options, std::ostream& err) {
     return run_on_devices(options, err);
   }
   hal::sim::World world = hal::sim::load_world(options.world);
-  if (options.laps > 1) {
-    // More laps of a loop: the path again from its first waypoint (a long-run test of
-    // bounded memory).
-    std::vector<hal::sim::Vec2>& waypoints = world.path.waypoints_m;
-    if ((waypoints.front() - waypoints.back()).norm() > 1e-9) {
-      err << "blockmap: run: --laps needs a world whose path is a loop\n";
-      return kExitUsage;
-    }
-    const std::vector<hal::sim::Vec2> lap(waypoints.begin() + 1, waypoints.end());
-    for (int i = 1; i < options.laps; ++i) {
-      waypoints.insert(waypoints.end(), lap.begin(), lap.end());
-    }
+  if (const std::string problem = hal::sim::repeat_laps(world, options.laps); !problem.empty()) {
+    err << "blockmap: run: " << problem << '\n';
+    return kExitUsage;
   }
   const hal::sim::RobotSpec robot = hal::sim::load_robot(options.robot);
   if (options.poses != "filter" && options.poses != "truth") {

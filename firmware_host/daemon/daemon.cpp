@@ -31,6 +31,7 @@
 #include "cli.hpp"
 #include "daemon/device_link.hpp"
 #include "daemon/snapshot.hpp"
+#include "outputs/output_thread.hpp"
 
 namespace blockmap::cli::daemon {
 namespace {
@@ -408,6 +409,7 @@ class Pipeline {
   // Owns health.jsonl from here (nullptr: none).
   void set_health_file(std::FILE* file) noexcept { health_ = file; }
   void set_snapshots(SnapshotWriter* snapshots) noexcept { snapshots_ = snapshots; }
+  void set_output_thread(const OutputThread* output) noexcept { output_ = output; }
 
   // A snapshot of the map now (the pipeline thread, or any thread once it has ended); the
   // last one stays when this one cannot be written.
@@ -589,7 +591,7 @@ class Pipeline {
         "],\"mapper\":{\"base_samples\":%llu,\"fixes\":%llu,\"fixes_rejected\":%llu,"
         "\"scans\":%llu,\"scans_projected\":%llu,\"points\":%llu,\"extractions\":%llu,"
         "\"final_planes\":%zu,\"late\":%llu,\"scans_refused\":%llu},"
-        "\"snapshots\":%llu,\"snapshot_failures\":%llu}\n",
+        "\"snapshots\":%llu,\"snapshot_failures\":%llu,\"output_waits\":%llu}\n",
         static_cast<unsigned long long>(c.base_samples), static_cast<unsigned long long>(c.fixes),
         static_cast<unsigned long long>(c.fixes_rejected), static_cast<unsigned long long>(c.scans),
         static_cast<unsigned long long>(c.scans_projected),
@@ -597,7 +599,8 @@ class Pipeline {
         session_.mapper().final_planes().size(), static_cast<unsigned long long>(c.messages_late),
         static_cast<unsigned long long>(c.scans_refused_full),
         static_cast<unsigned long long>(snapshots_ != nullptr ? snapshots_->written() : 0),
-        static_cast<unsigned long long>(snapshot_failures_));
+        static_cast<unsigned long long>(snapshot_failures_),
+        static_cast<unsigned long long>(output_ != nullptr ? output_->waits() : 0));
     std::fflush(health_);
   }
 
@@ -622,6 +625,7 @@ class Pipeline {
   TimestampNs next_snapshot_ns_ = 0;
   std::FILE* health_ = nullptr;
   SnapshotWriter* snapshots_ = nullptr;
+  const OutputThread* output_ = nullptr;
   std::uint64_t snapshot_failures_ = 0;
 };
 
@@ -668,7 +672,10 @@ class Daemon::Impl {
     pipeline::MapperConfig mapper_config = mapper_config_for(robot, options_.mapping);
     mapper_config.pose_source = pipeline::PoseSource::kLocalizer;
     if (config.whole_robot) {
-      const hal::sim::World world = hal::sim::load_world(config.whole_robot->name);
+      hal::sim::World world = hal::sim::load_world(config.whole_robot->name);
+      if (std::string problem = hal::sim::repeat_laps(world, options_.laps); !problem.empty()) {
+        return problem;
+      }
       hal::sim::SimOptions sim_options;
       sim_options.seed = options_.seed;
       sim_options.max_duration_s = options_.duration_s;
@@ -705,10 +712,19 @@ class Daemon::Impl {
       snapshots_.emplace(options_.mapping.out, mapper_config.registry.max_live_planes +
                                                    mapper_config.registry.max_final_planes);
     }
-    char line[160];
+    // The outputs' thread: room for the largest update the registry can make, the most
+    // buildings, and a smoothing window's poses.
+    OutputCapacity capacity;
+    capacity.changes = session_.mapper().registry().change_capacity();
+    capacity.buildings = mapper_config.buildings.max_buildings;
+    capacity.poses = mapper_config.localizer.filter.history_steps + 1;
+    output_thread_.emplace(session_.outputs(), capacity);
+    char line[200];
     std::snprintf(line, sizeof line,
-                  "daemon: device queues %.2f MiB, snapshot buffers %.2f MiB, taken at start-up\n",
+                  "daemon: device queues %.2f MiB, output queues %.2f MiB, snapshot buffers "
+                  "%.2f MiB, taken at start-up\n",
                   static_cast<double>(source_->queue_bytes()) / kMiB,
+                  static_cast<double>(output_thread_->memory_bytes()) / kMiB,
                   static_cast<double>(snapshots_ ? snapshots_->buffer_bytes() : 0) / kMiB);
     err << line;
     if (config.lock_memory && mlockall(MCL_CURRENT | MCL_FUTURE) != 0) {
@@ -719,6 +735,7 @@ class Daemon::Impl {
     if (snapshots_) {
       pipeline_->set_snapshots(&*snapshots_);
     }
+    pipeline_->set_output_thread(&*output_thread_);
     if (!options_.mapping.out.empty()) {
       const std::filesystem::path path =
           std::filesystem::path(options_.mapping.out) / "health.jsonl";
@@ -736,8 +753,16 @@ class Daemon::Impl {
   int run(const std::atomic<bool>& stop_requested, std::ostream& err) {
     std::atomic<bool> drain{false};
     std::atomic<bool> done{false};
+    session_.write_through(&*output_thread_);
+    output_thread_->start();
     std::thread pipeline_thread([&] {
+      if (options_.on_pipeline_thread) {
+        options_.on_pipeline_thread(true);
+      }
       pipeline_->run(drain);
+      if (options_.on_pipeline_thread) {
+        options_.on_pipeline_thread(false);
+      }
       done.store(true, std::memory_order_release);
     });
     apply_realtime_priority(pipeline_thread, err);
@@ -754,6 +779,9 @@ class Daemon::Impl {
     drain.store(true, std::memory_order_release);
     pipeline_thread.join();
     pipeline_->write_snapshot(&err);
+    // What the output thread holds is written; the rest (the end of the run) directly.
+    output_thread_->finish();
+    session_.write_through(nullptr);
     std::optional<hal::GeodeticPoint> origin;
     if (pipeline_->fixes().frame()) {
       origin = pipeline_->fixes().frame()->origin();
@@ -807,6 +835,7 @@ class Daemon::Impl {
   MappingSession session_;
   std::unique_ptr<Source> source_;
   std::optional<SnapshotWriter> snapshots_;
+  std::optional<OutputThread> output_thread_;
   std::optional<Pipeline> pipeline_;
   std::FILE* health_ = nullptr;
   std::array<char, 1 << 16> health_buffer_{};

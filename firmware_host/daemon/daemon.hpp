@@ -16,6 +16,7 @@
 #pragma once
 
 #include <atomic>
+#include <functional>
 #include <iosfwd>
 #include <memory>
 #include <string>
@@ -49,6 +50,10 @@ struct DaemonOptions {
   MappingOptions mapping;     // out, config (the mapping tables), udp, budget
   std::uint64_t seed = 1;     // sim:
   double duration_s = 0.0;    // sim: stop after this much simulated time (0: its whole path)
+  int laps = 1;               // sim: drive a loop path this many times (a long run)
+  // Called on the pipeline thread when its loop starts and when it has ended (the memory
+  // tests count that thread's allocations between the two).
+  std::function<void(bool started)> on_pipeline_thread;
 };
 
 class Daemon {

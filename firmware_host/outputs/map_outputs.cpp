@@ -19,7 +19,12 @@ namespace {
 namespace fs = std::filesystem;
 namespace stream = hal::protocol::plane_stream;
 
+// The VRML map's path: every 10th pose (2.5 s at the filter's 4 Hz), and never more than
+// kMaxPathPoses of them: a long run's path is thinned to every other point when it fills, so
+// that the outputs' memory does not grow with the run (a day's run keeps a point every few
+// tens of metres, plenty for a picture).
 constexpr std::size_t kPathDecimation = 10;
+constexpr std::size_t kMaxPathPoses = 8192;
 constexpr const char* kTrajectoryHeader = "t_s,x_m,y_m,z_m,roll_rad,pitch_rad,yaw_rad\n";
 
 std::uintmax_t whole_lines_bytes(const fs::path& path) {
@@ -83,6 +88,7 @@ std::string MapOutputs::open(const fs::path& dir, std::size_t max_changes,
   }
   trajectory_out_ = &trajectory_;
   files_ = true;
+  path_.reserve(kMaxPathPoses);
   if (trajectory_kept == 0) {
     *trajectory_out_ << kTrajectoryHeader;
   }
@@ -148,11 +154,22 @@ void MapOutputs::write_poses(std::span<const localize::Pose3> poses) {
                                 seconds_from_ns(p.stamp_ns), p.x_m, p.y_m, p.z_m, p.roll_rad,
                                 p.pitch_rad, p.yaw_rad);
     trajectory_out_->write(line, n);
-    if (trajectory_rows_ % kPathDecimation == 0) {
+    if (trajectory_rows_ % (kPathDecimation * path_stride_) == 0) {
+      if (path_.size() == kMaxPathPoses) {
+        thin_path();
+      }
       path_.push_back(p);
     }
     ++trajectory_rows_;
   }
+}
+
+void MapOutputs::thin_path() {
+  for (std::size_t i = 0; 2 * i < path_.size(); ++i) {
+    path_[i] = path_[2 * i];
+  }
+  path_.resize((path_.size() + 1) / 2);
+  path_stride_ *= 2;
 }
 
 std::string MapOutputs::finish(std::span<const msg::PlanePatch> planes,

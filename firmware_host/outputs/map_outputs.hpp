@@ -67,7 +67,9 @@ class MapOutputs {
   bool files_ = false;
   std::vector<std::uint8_t> record_;
   hal::linux_backend::UdpSender udp_;
-  std::vector<localize::Pose3> path_;  // every 10th pose, for the VRML map's path
+  void thin_path();
+  std::vector<localize::Pose3> path_;  // every 10th pose (thinned when full), for map.wrl
+  std::size_t path_stride_ = 1;        // path_ keeps every (10 x this)th pose
   std::uint64_t updates_ = 0;
   std::uint64_t binary_bytes_ = 0;
   std::size_t trajectory_rows_ = 0;

@@ -318,6 +318,21 @@ std::string world_text(std::string_view name_or_path, std::string& source) {
                                       source);
 }
 
+std::string repeat_laps(World& world, int laps) {
+  if (laps <= 1) {
+    return {};
+  }
+  std::vector<Vec2>& waypoints = world.path.waypoints_m;
+  if (waypoints.empty() || (waypoints.front() - waypoints.back()).norm() > 1e-9) {
+    return "--laps needs a world whose path is a loop";
+  }
+  const std::vector<Vec2> lap(waypoints.begin() + 1, waypoints.end());
+  for (int i = 1; i < laps; ++i) {
+    waypoints.insert(waypoints.end(), lap.begin(), lap.end());
+  }
+  return {};
+}
+
 World load_world(std::string_view name_or_path) {
   std::string source;
   const std::string text = world_text(name_or_path, source);

@@ -20,10 +20,15 @@ namespace {
 
 std::atomic<std::uint64_t> g_calls{0};
 std::atomic<std::uint64_t> g_bytes{0};
+// The calling thread's own (plain integers: initial-exec TLS, nothing allocated to reach it).
+thread_local std::uint64_t t_calls = 0;
+thread_local std::uint64_t t_bytes = 0;
 
 void note_allocation(std::size_t bytes) noexcept {
   g_calls.fetch_add(1, std::memory_order_relaxed);
   g_bytes.fetch_add(bytes, std::memory_order_relaxed);
+  ++t_calls;
+  t_bytes += bytes;
 }
 
 #if defined(BLOCKMAP_SANITIZED)
@@ -42,6 +47,10 @@ const bool g_hooks_installed =
 AllocationTally allocations_since_start() noexcept {
   return AllocationTally{g_calls.load(std::memory_order_relaxed),
                          g_bytes.load(std::memory_order_relaxed)};
+}
+
+AllocationTally allocations_on_this_thread() noexcept {
+  return AllocationTally{t_calls, t_bytes};
 }
 
 bool allocation_counting_active() noexcept {

@@ -25,6 +25,8 @@ struct AllocationTally {
 
 // Every allocation by every thread since the process started.
 [[nodiscard]] AllocationTally allocations_since_start() noexcept;
+// The calling thread's allocations since it started (a pipeline thread among others).
+[[nodiscard]] AllocationTally allocations_on_this_thread() noexcept;
 
 // True when the counting hooks are in place (always, in a binary linking this library; the
 // harness's own test checks it so that a broken link cannot make every budget test pass).

@@ -122,3 +122,20 @@ TEST(DaemonConfig, MoreLaserDevicesThanTheRobotHasLasersIsAnError) {
 
 }  // namespace
 }  // namespace blockmap::hal::config
+
+namespace blockmap::hal::config {
+namespace {
+
+TEST(DaemonConfig, TheShippedOnRobotConfigReads) {
+  const DaemonConfig c =
+      load_daemon_config(std::filesystem::path(BLOCKMAP_PROJECT_DIR) / "config" /
+                         "paper_rmp_onboard.toml");
+  EXPECT_EQ(c.robot, "paper_rmp");
+  ASSERT_TRUE(c.base);
+  EXPECT_EQ(c.lasers.size(), 2u);
+  ASSERT_TRUE(c.gps);
+  EXPECT_EQ(c.gps->baud, 9600u);
+}
+
+}  // namespace
+}  // namespace blockmap::hal::config

@@ -144,4 +144,8 @@ struct World {
 // world_text() parsed. Throws ConfigError.
 [[nodiscard]] World load_world(std::string_view name_or_path);
 
+// Makes `world`'s path `laps` laps of its loop (a long run, for tests of bounded memory): the
+// path again from its first waypoint. Empty when done, else why not (the path is no loop).
+[[nodiscard]] std::string repeat_laps(World& world, int laps);
+
 }  // namespace blockmap::hal::sim
