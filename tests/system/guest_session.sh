@@ -1,0 +1,33 @@
+# Run by scripts/guest-test inside the arm64 guest (issue 9): a whole mapping session on the
+# real kernel's interfaces. A minute of the simulated usc_block is recorded; can-utils'
+# canplayer puts the Segway's frames on vcan0 and `blockmap play` the lasers' and the GPS's
+# bytes on pseudo-terminals, both at the recorded pace; the daemon (`blockmap run` with a
+# [devices] table) maps from them until SIGINT. Its map must be the map `blockmap replay` makes
+# of the same logs, within the particle filter's own run-to-run spread (GuestSession test).
+set -e
+blockmap simulate --world usc_block --duration-s 60 --out /tmp/logs 2>/dev/null
+cat > /tmp/robot.toml <<'CONFIG'
+[devices]
+base = "can:vcan0"
+lasers = ["serial:/tmp/dev/laser_horizontal@500000", "serial:/tmp/dev/laser_vertical@500000"]
+gps = "serial:/tmp/dev/gps@9600"
+[daemon]
+reconnect_first_s = 0.05
+reconnect_max_s = 0.2
+snapshot_every_s = 5
+CONFIG
+blockmap run --config /tmp/robot.toml --out /tmp/out 2> /tmp/run.log &
+daemon=$!
+sleep 1  # the daemon is up, waiting for the serial lines to appear
+canplayer -I /tmp/logs/rmp.candump vcan0=can0 &
+player=$!
+blockmap play /tmp/logs --pty-dir /tmp/dev 2> /tmp/play.log
+wait $player
+sleep 1
+kill -INT $daemon
+wait $daemon || { cat /tmp/run.log; exit 1; }
+grep -E "^device|^mapped" /tmp/run.log
+tail -n 1 /tmp/play.log
+blockmap replay /tmp/logs --out /tmp/replay 2>/dev/null
+BLOCKMAP_GUEST_SESSION=/tmp unit_cli_tests --gtest_brief=1 --gtest_filter='GuestSession.*'
+echo "guest_session: passed"
