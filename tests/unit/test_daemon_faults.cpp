@@ -429,7 +429,8 @@ bool within_spread(const Wall& wall, const std::vector<Wall>& walls) {
 // The guest's full session (tests/system/guest_session.sh): the daemon mapped from vcan0 and
 // ptys in the arm64 guest's kernel; its map against the replay of the same logs.
 TEST(GuestSession, TheDaemonsMapIsTheReplaysWithinTheFiltersSpread) {
-  const char* session = std::getenv("BLOCKMAP_GUEST_SESSION");
+  // Read before this test starts any thread: nothing sets the environment concurrently.
+  const char* session = std::getenv("BLOCKMAP_GUEST_SESSION");  // NOLINT(concurrency-mt-unsafe)
   if (session == nullptr) {
     GTEST_SKIP() << "run by tests/system/guest_session.sh in the arm64 guest";
   }
