@@ -127,9 +127,8 @@ namespace blockmap::hal::config {
 namespace {
 
 TEST(DaemonConfig, TheShippedOnRobotConfigReads) {
-  const DaemonConfig c =
-      load_daemon_config(std::filesystem::path(BLOCKMAP_PROJECT_DIR) / "config" /
-                         "paper_rmp_onboard.toml");
+  const DaemonConfig c = load_daemon_config(std::filesystem::path(BLOCKMAP_PROJECT_DIR) / "config" /
+                                            "paper_rmp_onboard.toml");
   EXPECT_EQ(c.robot, "paper_rmp");
   ASSERT_TRUE(c.base);
   EXPECT_EQ(c.lasers.size(), 2u);
