@@ -31,7 +31,20 @@ struct RunOptions {
   double duration_s = 0.0;
   std::string poses = "filter";
   int laps = 1;
+  std::vector<double> gps_silent_s;  // FROM TO: the simulated receiver sends nothing between
 };
+
+// The simulation's options of a run.
+hal::sim::SimOptions sim_options_of(const RunOptions& options) {
+  hal::sim::SimOptions sim;
+  sim.seed = options.seed;
+  sim.max_duration_s = options.duration_s;
+  if (options.gps_silent_s.size() == 2) {
+    sim.gps_silent_from_s = options.gps_silent_s[0];
+    sim.gps_silent_to_s = options.gps_silent_s[1];
+  }
+  return sim;
+}
 
 // With a [devices] table in --config: the on-robot daemon (daemon/daemon.hpp).
 int run_on_devices(const RunOptions& options, std::ostream& err) {
@@ -39,8 +52,7 @@ int run_on_devices(const RunOptions& options, std::ostream& err) {
   daemon_options.config = hal::config::load_daemon_config(options.mapping.config);
   daemon_options.config_source = options.mapping.config;
   daemon_options.mapping = options.mapping;
-  daemon_options.seed = options.seed;
-  daemon_options.duration_s = options.duration_s;
+  daemon_options.sim = sim_options_of(options);
   daemon_options.laps = options.laps;
   return daemon::run_daemon(std::move(daemon_options), err);
 }
@@ -63,9 +75,7 @@ int run(const RunOptions& options, std::ostream& err) {
   const bool true_poses = options.poses == "truth";
   config.pose_source =
       true_poses ? pipeline::PoseSource::kExternal : pipeline::PoseSource::kLocalizer;
-  hal::sim::SimOptions sim_options;
-  sim_options.seed = options.seed;
-  sim_options.max_duration_s = options.duration_s;
+  const hal::sim::SimOptions sim_options = sim_options_of(options);
   auto simulated = std::make_unique<hal::sim::SimulatedRobot>(world, robot, sim_options);
   if (simulated->start() != IoStatus::kOk) {
     err << "blockmap: run: the simulated lasers did not start\n";
@@ -134,6 +144,12 @@ Command add_run_command(CLI::App& app) {
       ->capture_default_str();
   command->add_flag("--cloud", options->mapping.cloud,
                     "also write cloud.ply, every projected point");
+  command
+      ->add_option("--gps-silent-s", options->gps_silent_s,
+                   "FROM TO: the simulated GPS receiver sends nothing between these seconds of "
+                   "the run (a fault test)")
+      ->expected(2)
+      ->check(CLI::NonNegativeNumber);
   command->add_option("--laps", options->laps, "drive a loop path this many times")
       ->check(CLI::Range(1, 1000))
       ->capture_default_str();

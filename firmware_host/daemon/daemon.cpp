@@ -676,10 +676,7 @@ class Daemon::Impl {
       if (std::string problem = hal::sim::repeat_laps(world, options_.laps); !problem.empty()) {
         return problem;
       }
-      hal::sim::SimOptions sim_options;
-      sim_options.seed = options_.seed;
-      sim_options.max_duration_s = options_.duration_s;
-      source_ = std::make_unique<SimSource>(world, robot, sim_options,
+      source_ = std::make_unique<SimSource>(world, robot, options_.sim,
                                             hal::to_string(*config.whole_robot));
     } else {
       source_ = std::make_unique<RobotSource>(options_.config, robot, std::move(can_), clock_);

@@ -23,6 +23,7 @@
 
 #include "blockmap/hal/can_bus.hpp"
 #include "blockmap/hal/config/daemon_config.hpp"
+#include "blockmap/hal/sim/simulation.hpp"
 #include "commands/mapping.hpp"
 
 namespace blockmap::cli::daemon {
@@ -48,8 +49,7 @@ struct DaemonOptions {
   hal::config::DaemonConfig config;
   std::string config_source;  // the file, for messages
   MappingOptions mapping;     // out, config (the mapping tables), udp, budget
-  std::uint64_t seed = 1;     // sim:
-  double duration_s = 0.0;    // sim: stop after this much simulated time (0: its whole path)
+  hal::sim::SimOptions sim;   // sim: the seed, the duration, a GPS silence
   int laps = 1;               // sim: drive a loop path this many times (a long run)
   // Called on the pipeline thread when its loop starts and when it has ended (the memory
   // tests count that thread's allocations between the two).

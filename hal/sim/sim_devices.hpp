@@ -92,6 +92,11 @@ class SimGps {
   SimGps(const GpsSpec& spec, const Site& site, std::size_t device, std::uint64_t seed);
   [[nodiscard]] TimestampNs next_event_ns(const SimContext& context) const noexcept;
   void fire(SimContext& context, SimSink& sink, SimStats& stats);
+  // Epochs in [from_ns, to_ns) are computed but not sent.
+  void set_silence(TimestampNs from_ns, TimestampNs to_ns) noexcept {
+    silent_from_ns_ = from_ns;
+    silent_to_ns_ = to_ns;
+  }
   [[nodiscard]] std::size_t memory_bytes() const noexcept { return wire_.memory_bytes(); }
 
  private:
@@ -114,6 +119,8 @@ class SimGps {
   std::vector<Satellite> satellites_;
   GpsErrorProcess error_;
   std::uint64_t next_epoch_ = 1;
+  TimestampNs silent_from_ns_ = 0;
+  TimestampNs silent_to_ns_ = 0;
   std::array<char, protocol::nmea::kMaxSentenceBytes> sentence_{};
 };
 

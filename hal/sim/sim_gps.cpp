@@ -167,6 +167,10 @@ void SimGps::make_epoch(SimContext& context, SimSink& sink, SimStats& stats) {
     ++stats.gps_epochs_without_fix;
   }
 
+  if (epoch >= silent_from_ns_ && epoch < silent_to_ns_) {
+    ++stats.gps_epochs_silent;
+    return;
+  }
   const TimestampNs send_ns = epoch + static_cast<TimestampNs>(spec_.latency_s * 1e9);
   const auto send = [&](std::size_t length) {
     (void)wire_.send(std::span<const std::uint8_t>(

@@ -29,6 +29,10 @@ struct Simulation::Impl {
     stats.scans_skipped.assign(robot.lasers.size(), 0);
     stats.beams_returned.assign(robot.lasers.size(), 0);
     now_ns = context.start_ns;
+    if (options.gps_silent_to_s > options.gps_silent_from_s) {
+      gps.set_silence(context.stamp(options.gps_silent_from_s),
+                      context.stamp(options.gps_silent_to_s));
+    }
     if (options.max_duration_s > 0.0) {
       context.end_ns = context.stamp(options.max_duration_s);
     }

@@ -34,7 +34,7 @@ PipelineAllocations run_laps(int laps, double duration_s) {
   options.config_source = "test";
   options.mapping.out = out.string();
   options.laps = laps;
-  options.duration_s = duration_s;
+  options.sim.max_duration_s = duration_s;
   std::atomic<std::uint64_t> calls{0};
   std::atomic<std::uint64_t> bytes{0};
   testing::AllocationTally at_start;

@@ -6,13 +6,17 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <numbers>
 #include <sstream>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "cli.hpp"
 #include "cli_runner.hpp"
@@ -165,6 +169,88 @@ TEST(Daemon, DevicesThatAreNotThereAreReportedAndRetriedUntilStopped) {
   EXPECT_NE(err.str().find("daemon: stopping"), std::string::npos) << err.str();
   EXPECT_TRUE(fs::exists(out / "planes.json")) << "the outputs are written at the end";
   fs::remove_all(out);
+}
+
+}  // namespace
+}  // namespace blockmap::cli
+
+namespace blockmap::cli {
+namespace {
+
+struct WallPlane {
+  Eigen::Vector3d normal;
+  double d = 0.0;
+  double support = 0.0;
+};
+
+std::vector<WallPlane> large_walls(const fs::path& planes_json, double min_support) {
+  std::vector<WallPlane> walls;
+  const nlohmann::json list = nlohmann::json::parse(read_file(planes_json));
+  for (const nlohmann::json& plane : list["planes"]) {
+    if (plane["kind"] == "wall" && plane["support"].get<double>() >= min_support) {
+      walls.push_back({Eigen::Vector3d(plane["normal"][0], plane["normal"][1], plane["normal"][2]),
+                       plane["d"].get<double>(), plane["support"].get<double>()});
+    }
+  }
+  return walls;
+}
+
+// Within 8 deg and 3 m: the particle filter's run-to-run spread (docs/daemon.md).
+bool among(const WallPlane& wall, const std::vector<WallPlane>& walls) {
+  return std::any_of(walls.begin(), walls.end(), [&](const WallPlane& other) {
+    const double cos_angle = wall.normal.dot(other.normal);
+    const double sign = cos_angle < 0.0 ? -1.0 : 1.0;
+    return std::abs(cos_angle) > std::cos(8.0 * std::numbers::pi / 180.0) &&
+           std::abs(wall.d - sign * other.d) < 3.0;
+  });
+}
+
+nlohmann::json last_health(const fs::path& health_jsonl) {
+  std::istringstream lines(read_file(health_jsonl));
+  nlohmann::json last;
+  for (std::string line; std::getline(lines, line);) {
+    last = nlohmann::json::parse(line);
+  }
+  return last;
+}
+
+TEST(Daemon, AMinuteWithoutGpsIsMappedOnOdometryAndTheBlockIsStillTheBlock) {
+  const fs::path with_gps = scratch("with_gps");
+  const fs::path without = scratch("gps_silent");
+  const fs::path config = write_config("outage", "[devices]\nrobot = \"sim:usc_block\"\n");
+  const testing::CliResult a =
+      run_cli({"run", "--config", config.string(), "--out", with_gps.string()});
+  ASSERT_EQ(a.status, kExitOk) << a.err;
+  // The receiver says nothing from 40 s to 100 s of the 173 s loop: the robot drives a long
+  // side and turns a corner on odometry alone.
+  const testing::CliResult b = run_cli({"run", "--config", config.string(), "--gps-silent-s", "40",
+                                        "100", "--out", without.string()});
+  ASSERT_EQ(b.status, kExitOk) << b.err;
+  const nlohmann::json health_a = last_health(with_gps / "health.jsonl");
+  const nlohmann::json health_b = last_health(without / "health.jsonl");
+  // 4 fixes a second were missing for the minute; every scan was still mapped.
+  const int fixes_a = health_a["mapper"]["fixes"].get<int>();
+  const int fixes_b = health_b["mapper"]["fixes"].get<int>();
+  EXPECT_NEAR(fixes_a - fixes_b, 240, 8) << fixes_a << " and " << fixes_b;
+  EXPECT_EQ(health_b["mapper"]["scans_projected"], health_a["mapper"]["scans_projected"]);
+  // The map: the block's walls, as without the silence (within the filter's own spread).
+  const std::vector<WallPlane> walls_a = large_walls(with_gps / "planes.json", 20000.0);
+  const std::vector<WallPlane> walls_b = large_walls(without / "planes.json", 20000.0);
+  EXPECT_GE(walls_a.size(), 3u);
+  for (const WallPlane& wall : walls_a) {
+    EXPECT_TRUE(among(wall, walls_b))
+        << "a wall mapped with GPS, lost without: n = " << wall.normal.transpose()
+        << ", d = " << wall.d;
+  }
+  for (const WallPlane& wall : walls_b) {
+    EXPECT_TRUE(among(wall, walls_a))
+        << "a wall mapped only without GPS: n = " << wall.normal.transpose() << ", d = " << wall.d;
+  }
+  if (!HasFailure()) {
+    fs::remove_all(with_gps);
+    fs::remove_all(without);
+  }
+  fs::remove(config);
 }
 
 }  // namespace

@@ -72,12 +72,18 @@ struct SimOptions {
   double max_duration_s = 0.0;
   // After the robot stops, the devices go on for this long (the paper's runs end standing).
   double hold_after_stop_s = 1.0;
+  // The GPS receiver sends nothing from gps_silent_from_s to gps_silent_to_s of the run (a
+  // cable pulled, a receiver resetting): a fault test. Its error process runs on, so that the
+  // fixes after the silence are those of the same run without it.
+  double gps_silent_from_s = 0.0;
+  double gps_silent_to_s = 0.0;
 };
 
 struct SimStats {
   std::uint64_t rmp_cycles = 0;
   std::uint64_t gps_epochs = 0;
   std::uint64_t gps_epochs_without_fix = 0;
+  std::uint64_t gps_epochs_silent = 0;       // SimOptions::gps_silent_*: computed, not sent
   std::vector<std::uint64_t> scans_sent;     // per laser
   std::vector<std::uint64_t> scans_skipped;  // per laser: the serial line was still busy
   std::vector<std::uint64_t> beams_returned;
