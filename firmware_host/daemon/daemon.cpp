@@ -409,29 +409,19 @@ class Pipeline {
   // Owns health.jsonl from here (nullptr: none).
   void set_health_file(std::FILE* file) noexcept { health_ = file; }
   void set_snapshots(SnapshotWriter* snapshots) noexcept { snapshots_ = snapshots; }
-  void set_output_thread(const OutputThread* output) noexcept { output_ = output; }
+  void set_output_thread(OutputThread* output) noexcept { output_ = output; }
 
-  // A snapshot of the map now (the pipeline thread, or any thread once it has ended); the
-  // last one stays when this one cannot be written.
-  void write_snapshot(std::ostream* err) {
+  // A snapshot of the map now, written at once (once the pipeline thread has ended); the last
+  // one stays when this one cannot be written.
+  void write_snapshot(std::ostream& err) {
     if (snapshots_ == nullptr) {
       return;
     }
-    SnapshotHeader header;
-    header.stamp_ns = last_stamp_ns_;
-    header.next_id = session_.mapper().registry().next_id();
-    if (fixes_.frame()) {
-      header.origin = fixes_.frame()->origin();
-    }
     const std::size_t count = session_.mapper().save_planes(snapshots_->planes());
-    if (const std::string problem = snapshots_->write(header, count); !problem.empty()) {
-      ++snapshot_failures_;
-      if (err != nullptr) {
-        *err << "daemon: snapshot: " << problem << '\n';
-      }
+    if (const std::string problem = snapshots_->write(snapshot_header(), count); !problem.empty()) {
+      err << "daemon: snapshot: " << problem << '\n';
     }
   }
-  [[nodiscard]] std::uint64_t snapshot_failures() const noexcept { return snapshot_failures_; }
 
   // The thread's body: runs until `drain` is set and everything published is mapped, or the
   // source has finished and everything is mapped.
@@ -528,16 +518,34 @@ class Pipeline {
   }
 
   void write_snapshot_when_due() {
-    if (snapshots_ == nullptr || snapshot_every_ns_ == 0 || first_stamp_ns_ == kEndOfTime) {
+    if (snapshots_ == nullptr || output_ == nullptr || snapshot_every_ns_ == 0 ||
+        first_stamp_ns_ == kEndOfTime) {
       return;
     }
     if (next_snapshot_ns_ == 0) {
       next_snapshot_ns_ = first_stamp_ns_ + snapshot_every_ns_;
     }
-    if (last_stamp_ns_ >= next_snapshot_ns_) {
-      write_snapshot(nullptr);  // a failure is counted in health.jsonl
-      next_snapshot_ns_ = last_stamp_ns_ + snapshot_every_ns_;
+    if (last_stamp_ns_ < next_snapshot_ns_) {
+      return;
     }
+    next_snapshot_ns_ = last_stamp_ns_ + snapshot_every_ns_;
+    // The planes are encoded here; the output thread puts them on disk.
+    if (output_->snapshot_pending()) {
+      ++snapshots_skipped_;  // the last one is still being written: the next will carry this
+      return;
+    }
+    const std::size_t count = session_.mapper().save_planes(snapshots_->planes());
+    output_->put_snapshot(snapshots_->encode(snapshot_header(), count));
+  }
+
+  [[nodiscard]] SnapshotHeader snapshot_header() const {
+    SnapshotHeader header;
+    header.stamp_ns = last_stamp_ns_;
+    header.next_id = session_.mapper().registry().next_id();
+    if (fixes_.frame()) {
+      header.origin = fixes_.frame()->origin();
+    }
+    return header;
   }
 
   void write_health_when_due() {
@@ -591,7 +599,8 @@ class Pipeline {
         "],\"mapper\":{\"base_samples\":%llu,\"fixes\":%llu,\"fixes_rejected\":%llu,"
         "\"scans\":%llu,\"scans_projected\":%llu,\"points\":%llu,\"extractions\":%llu,"
         "\"final_planes\":%zu,\"late\":%llu,\"scans_refused\":%llu},"
-        "\"snapshots\":%llu,\"snapshot_failures\":%llu,\"output_waits\":%llu}\n",
+        "\"snapshots\":%llu,\"snapshot_failures\":%llu,\"snapshots_skipped\":%llu,"
+        "\"output_waits\":%llu}\n",
         static_cast<unsigned long long>(c.base_samples), static_cast<unsigned long long>(c.fixes),
         static_cast<unsigned long long>(c.fixes_rejected), static_cast<unsigned long long>(c.scans),
         static_cast<unsigned long long>(c.scans_projected),
@@ -599,7 +608,8 @@ class Pipeline {
         session_.mapper().final_planes().size(), static_cast<unsigned long long>(c.messages_late),
         static_cast<unsigned long long>(c.scans_refused_full),
         static_cast<unsigned long long>(snapshots_ != nullptr ? snapshots_->written() : 0),
-        static_cast<unsigned long long>(snapshot_failures_),
+        static_cast<unsigned long long>(output_ != nullptr ? output_->snapshot_failures() : 0),
+        static_cast<unsigned long long>(snapshots_skipped_),
         static_cast<unsigned long long>(output_ != nullptr ? output_->waits() : 0));
     std::fflush(health_);
   }
@@ -625,8 +635,8 @@ class Pipeline {
   TimestampNs next_snapshot_ns_ = 0;
   std::FILE* health_ = nullptr;
   SnapshotWriter* snapshots_ = nullptr;
-  const OutputThread* output_ = nullptr;
-  std::uint64_t snapshot_failures_ = 0;
+  OutputThread* output_ = nullptr;
+  std::uint64_t snapshots_skipped_ = 0;
 };
 
 }  // namespace
@@ -733,6 +743,9 @@ class Daemon::Impl {
       pipeline_->set_snapshots(&*snapshots_);
     }
     pipeline_->set_output_thread(&*output_thread_);
+    if (snapshots_) {
+      output_thread_->set_snapshots(&*snapshots_);
+    }
     if (!options_.mapping.out.empty()) {
       const std::filesystem::path path =
           std::filesystem::path(options_.mapping.out) / "health.jsonl";
@@ -775,10 +788,11 @@ class Daemon::Impl {
     source_->stop();
     drain.store(true, std::memory_order_release);
     pipeline_thread.join();
-    pipeline_->write_snapshot(&err);
-    // What the output thread holds is written; the rest (the end of the run) directly.
+    // What the output thread holds is written (a snapshot in hand among it); then the last
+    // snapshot, and the end of the run, directly.
     output_thread_->finish();
     session_.write_through(nullptr);
+    pipeline_->write_snapshot(err);
     std::optional<hal::GeodeticPoint> origin;
     if (pipeline_->fixes().frame()) {
       origin = pipeline_->fixes().frame()->origin();

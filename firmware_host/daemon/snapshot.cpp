@@ -275,10 +275,12 @@ SnapshotWriter::SnapshotWriter(fs::path dir, std::size_t max_planes)
       planes_(max_planes),
       bytes_(snapshot_bytes(max_planes)) {}
 
-std::string SnapshotWriter::write(const SnapshotHeader& header, std::size_t count) {
-  const std::size_t size =
-      encode_snapshot(header, std::span<const map::SavedPlane>(planes_.data(), count), bytes_);
-  if (std::string problem = write_synced(temporary_, std::span(bytes_.data(), size));
+std::size_t SnapshotWriter::encode(const SnapshotHeader& header, std::size_t count) noexcept {
+  return encode_snapshot(header, std::span<const map::SavedPlane>(planes_.data(), count), bytes_);
+}
+
+std::string SnapshotWriter::write_encoded(std::size_t bytes) {
+  if (std::string problem = write_synced(temporary_, std::span(bytes_.data(), bytes));
       !problem.empty()) {
     return problem;
   }
@@ -289,8 +291,12 @@ std::string SnapshotWriter::write(const SnapshotHeader& header, std::size_t coun
     return path_ + ": " + std::generic_category().message(errno);
   }
   sync_folder(dir_);
-  ++written_;
+  written_.fetch_add(1, std::memory_order_relaxed);
   return {};
+}
+
+std::string SnapshotWriter::write(const SnapshotHeader& header, std::size_t count) {
+  return write_encoded(encode(header, count));
 }
 
 std::optional<Snapshot> read_snapshot(const fs::path& dir, std::string& error) {

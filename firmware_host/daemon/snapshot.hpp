@@ -7,6 +7,7 @@
 // half-read. The buildings are not stored: they follow from the planes and are fitted again.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -37,10 +38,17 @@ class SnapshotWriter {
   [[nodiscard]] std::span<map::SavedPlane> planes() noexcept { return planes_; }
   // Empty when the snapshot is on disk, else one line why not (the last one stays).
   [[nodiscard]] std::string write(const SnapshotHeader& header, std::size_t count);
+  // write() in two steps, for two threads: the planes encoded into the writer's bytes (quick,
+  // the pipeline thread), then the bytes put on disk (write, fsync, rename: the output
+  // thread). Returns the bytes encoded.
+  [[nodiscard]] std::size_t encode(const SnapshotHeader& header, std::size_t count) noexcept;
+  [[nodiscard]] std::string write_encoded(std::size_t bytes);
   [[nodiscard]] std::size_t buffer_bytes() const noexcept {
     return bytes_.capacity() + planes_.capacity() * sizeof(map::SavedPlane);
   }
-  [[nodiscard]] std::uint64_t written() const noexcept { return written_; }
+  [[nodiscard]] std::uint64_t written() const noexcept {
+    return written_.load(std::memory_order_relaxed);
+  }
 
  private:
   std::filesystem::path dir_;
@@ -49,7 +57,7 @@ class SnapshotWriter {
   std::string temporary_;  // dir/snapshot.bin.tmp
   std::vector<map::SavedPlane> planes_;
   std::vector<std::uint8_t> bytes_;
-  std::uint64_t written_ = 0;
+  std::atomic<std::uint64_t> written_{0};
 };
 
 struct Snapshot {

@@ -114,11 +114,24 @@ bool OutputThread::write_next() {
   return true;
 }
 
+bool OutputThread::write_snapshot() {
+  const std::size_t bytes = snapshot_bytes_.load(std::memory_order_acquire);
+  if (bytes == 0 || snapshots_ == nullptr) {
+    return false;
+  }
+  if (!snapshots_->write_encoded(bytes).empty()) {
+    snapshot_failures_.increment();  // the last snapshot stays; health.jsonl shows it
+  }
+  snapshot_bytes_.store(0, std::memory_order_release);
+  return true;
+}
+
 void OutputThread::run() {
   for (;;) {
     // Read before the queue: when finishing, everything put before it is in the queue.
     const bool finishing = finishing_.load(std::memory_order_acquire);
-    if (write_next()) {
+    const bool wrote_snapshot = write_snapshot();
+    if (write_next() || wrote_snapshot) {
       continue;
     }
     if (finishing) {

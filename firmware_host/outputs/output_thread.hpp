@@ -19,6 +19,7 @@
 #include "blockmap/core/spsc_queue.hpp"
 #include "blockmap/localize/localizer.hpp"
 #include "blockmap/msg/plane_patch.hpp"
+#include "daemon/snapshot.hpp"
 #include "outputs/map_outputs.hpp"
 
 namespace blockmap::cli {
@@ -46,6 +47,20 @@ class OutputThread {
   void put_buildings(TimestampNs stamp_ns, std::span<const buildings::Building> buildings);
   void put_poses(std::span<const localize::Pose3> poses);
 
+  // Snapshots: the pipeline encodes one into `writer` (daemon/snapshot.hpp) while none is
+  // pending, then hands its size over; this thread writes it (write, fsync, rename) and frees
+  // the writer again. A snapshot due while the last is still being written is skipped.
+  void set_snapshots(daemon::SnapshotWriter* writer) noexcept { snapshots_ = writer; }
+  [[nodiscard]] bool snapshot_pending() const noexcept {
+    return snapshot_bytes_.load(std::memory_order_acquire) != 0;
+  }
+  void put_snapshot(std::size_t bytes) noexcept {
+    snapshot_bytes_.store(bytes, std::memory_order_release);
+  }
+  [[nodiscard]] std::uint64_t snapshot_failures() const noexcept {
+    return snapshot_failures_.value();
+  }
+
   [[nodiscard]] std::uint64_t waits() const noexcept { return waits_.value(); }
   [[nodiscard]] std::size_t memory_bytes() const noexcept;
 
@@ -72,6 +87,8 @@ class OutputThread {
   void run();
   // Writes the next event; false when there was none.
   bool write_next();
+  // Writes the pending snapshot; false when there was none.
+  bool write_snapshot();
 
   MapOutputs& outputs_;
   std::vector<Event> event_slots_;
@@ -79,6 +96,9 @@ class OutputThread {
   Lane<msg::PlaneChange> changes_;
   Lane<buildings::Building> buildings_;
   Lane<localize::Pose3> poses_;
+  daemon::SnapshotWriter* snapshots_ = nullptr;
+  std::atomic<std::size_t> snapshot_bytes_{0};
+  MonotonicCounter snapshot_failures_;
   std::atomic<bool> finishing_{false};
   std::thread thread_;
   MonotonicCounter waits_;
