@@ -145,8 +145,11 @@ class RobotSource final : public Source {
       if (!config.lasers[i]) {
         continue;
       }
-      auto laser = std::make_unique<Laser>(*config.lasers[i], config.scan_queue_messages,
-                                           hal::sim::lms2xx_config_for(robot.lasers[i]));
+      hal::devices::Lms2xxScannerConfig laser_config = hal::sim::lms2xx_config_for(robot.lasers[i]);
+      laser_config.line_baud = config.lasers[i]->baud;
+      laser_config.power_up_baud = config.lms_power_up_baud;
+      auto laser =
+          std::make_unique<Laser>(*config.lasers[i], config.scan_queue_messages, laser_config);
       Laser* l = laser.get();
       inlets.scans.resize(i + 1, nullptr);
       inlets.scans[i] = &l->scans.queue();
@@ -239,10 +242,11 @@ class RobotSource final : public Source {
       if (std::string problem = port.open(address.name, address.baud); !problem.empty()) {
         return problem;
       }
-      // Continuous output again: a laser that was power-cycled has forgotten it.
+      // Continuous output again: a laser that was power-cycled has forgotten it (and its rate,
+      // which the handshake brings back when configured).
       if (const IoStatus status = device.start(); status != IoStatus::kOk) {
         port.close();
-        return address.name + ": the start command was not sent (" +
+        return address.name + ": the laser did not start (" +
                std::string(blockmap::to_string(status)) + ")";
       }
       return {};

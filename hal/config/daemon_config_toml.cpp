@@ -59,6 +59,14 @@ void read_devices(TableReader& t, DaemonConfig& c) {
     }
     c.lasers.push_back(address);
   }
+  const std::int64_t power_up = t.integer_or("lms_power_up_baud", c.lms_power_up_baud);
+  if (power_up != 0 && power_up != 9600 && power_up != 19200 && power_up != 38400 &&
+      power_up != 500000) {
+    t.fail("lms_power_up_baud",
+           "an LMS2xx talks at 9600, 19200, 38400 or 500000 Bd (0: no "
+           "handshake)");
+  }
+  c.lms_power_up_baud = static_cast<std::uint32_t>(power_up);
   c.gps = device_at(t, "gps", {DeviceBackend::kSerial},
                     "an NMEA receiver is on a serial line (serial:/dev/ttyUSB2@9600)");
   c.status_led = device_at(t, "status_led", {DeviceBackend::kGpio},

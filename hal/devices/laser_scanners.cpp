@@ -42,6 +42,7 @@ Lms2xxScanner::Lms2xxScanner(ByteStream& port, SpscQueueRef<msg::LaserScan>& sca
                              const Lms2xxScannerConfig& config)
     : ScanPublisher(scans, config.latency_ns, config.beam_interval_s),
       port_(port),
+      config_(config),
       decoder_(config.codec) {}
 
 Lms2xxScannerConfig lms2xx_single_turn_timing(double field_deg, double resolution_deg,
@@ -54,10 +55,54 @@ Lms2xxScannerConfig lms2xx_single_turn_timing(double field_deg, double resolutio
   return config;
 }
 
+IoStatus Lms2xxScanner::request(std::span<const std::uint8_t> request) {
+  return write_all(port_, request);
+}
+
+bool Lms2xxScanner::request_answered(std::span<const std::uint8_t> bytes) {
+  const std::uint64_t switches = mode_switches();
+  const std::uint64_t scans = scans_published();
+  if (request(bytes) != IoStatus::kOk) {
+    return false;
+  }
+  // The reply-time budget, spent in reads of at most 20 ms.
+  for (TimestampNs waited_ns = 0; waited_ns < config_.reply_timeout_ns; waited_ns += 20'000'000) {
+    const IoStatus status = poll(20'000'000);
+    if (mode_switches() != switches || scans_published() != scans) {
+      return true;
+    }
+    if (status != IoStatus::kOk && status != IoStatus::kTimedOut &&
+        status != IoStatus::kWouldBlock) {
+      return false;
+    }
+  }
+  return false;
+}
+
 IoStatus Lms2xxScanner::start() {
-  std::array<std::uint8_t, lms::kRequestBufferBytes> request{};
-  const std::size_t length = lms::encode_continuous_output(request);
-  return write_all(port_, std::span<const std::uint8_t>(request.data(), length));
+  std::array<std::uint8_t, lms::kRequestBufferBytes> continuous{};
+  const std::span<const std::uint8_t> continuous_request(continuous.data(),
+                                                         lms::encode_continuous_output(continuous));
+  if (config_.power_up_baud == 0 || config_.line_baud == 0 ||
+      config_.power_up_baud == config_.line_baud) {
+    return request(continuous_request);
+  }
+  // Already at the line's rate (it kept it since the last start)?
+  if (port_.set_baud(config_.line_baud) == IoStatus::kOk && request_answered(continuous_request)) {
+    return IoStatus::kOk;
+  }
+  // At its power-up rate: asked for the line's rate, it answers at the old one, then switches.
+  std::array<std::uint8_t, lms::kRequestBufferBytes> set_baud{};
+  const std::size_t length = lms::encode_set_baud(set_baud, config_.line_baud);
+  if (length == 0 || port_.set_baud(config_.power_up_baud) != IoStatus::kOk ||
+      !request_answered(std::span<const std::uint8_t>(set_baud.data(), length))) {
+    static_cast<void>(port_.set_baud(config_.line_baud));
+    return IoStatus::kTimedOut;
+  }
+  if (port_.set_baud(config_.line_baud) != IoStatus::kOk) {
+    return IoStatus::kIoError;
+  }
+  return request_answered(continuous_request) ? IoStatus::kOk : IoStatus::kTimedOut;
 }
 
 IoStatus Lms2xxScanner::poll(TimestampNs timeout_ns) {

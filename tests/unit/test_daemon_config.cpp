@@ -89,6 +89,7 @@ TEST(DaemonConfig, EveryMistakeIsOneLineNamingItsKey) {
       {"[devices]\nbase = \"can:can0\"\nlasers = \"serial:/dev/ttyS0@9600\"\n", "devices.lasers"},
       {"[devices]\nbase = \"can:can0\"\ngps = \"gpio:gpiochip0:1\"\n", "devices.gps"},
       {"[devices]\nbase = \"can:can0\"\nstatus_led = \"can:can1\"\n", "devices.status_led"},
+      {"[devices]\nbase = \"can:can0\"\nlms_power_up_baud = 4800\n", "devices.lms_power_up_baud"},
       {"[devices]\nlasers = [\"serial:/dev/ttyS0@9600\"]\n", "devices.base"},
       {"[devices]\nrobot = \"sim:usc_block\"\nbase = \"can:can0\"\n", "devices.base"},
       {"[devices]\nrobot = \"can:can0\"\n", "devices.robot"},
@@ -134,6 +135,7 @@ TEST(DaemonConfig, TheShippedOnRobotConfigReads) {
   EXPECT_EQ(c.lasers.size(), 2u);
   ASSERT_TRUE(c.gps);
   EXPECT_EQ(c.gps->baud, 9600u);
+  EXPECT_EQ(c.lms_power_up_baud, 9600u);
 }
 
 }  // namespace

@@ -9,10 +9,13 @@
 #include <unistd.h>
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <numeric>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "blockmap/core/spsc_queue.hpp"
@@ -46,6 +49,7 @@ class PseudoTerminal {
 
   [[nodiscard]] const std::string& path() const { return path_; }
   [[nodiscard]] int slave() const { return slave_; }
+  [[nodiscard]] int master() const { return master_; }
   void close_master() {
     if (master_ >= 0) {
       ::close(master_);
@@ -240,6 +244,133 @@ TEST(SerialPort, AnLms2xxScannerStartsAndStreamsThroughARealTerminal) {
   }
   EXPECT_EQ(scanner.decoder().drops().total(), 0u);
   EXPECT_EQ(scanner.decoder().scans_decoded(), 4u);
+}
+
+// An LMS2xx at the master end for the baud-rate handshake (PROTOCOLS.md 2.4): it talks at
+// `rate_bd` (9600 after power-up) and answers only requests sent at that rate, a mode switch
+// with 06 and A0 00 (at the old rate, then it switches). It records each request and the line
+// rate the port had set when it came.
+class FakeLms {
+ public:
+  FakeLms(PseudoTerminal& tty, std::uint32_t rate_bd) : tty_(tty), rate_bd_(rate_bd) {
+    thread_ = std::thread([this] { run(); });
+  }
+  ~FakeLms() {
+    stop_ = true;
+    thread_.join();
+  }
+  FakeLms(const FakeLms&) = delete;
+  FakeLms& operator=(const FakeLms&) = delete;
+  struct Request {
+    std::vector<std::uint8_t> bytes;
+    speed_t line = 0;  // the port's rate when it came (0 where QEMU cannot say)
+  };
+  [[nodiscard]] std::vector<Request> requests() {
+    const std::lock_guard<std::mutex> guard(lock_);
+    return requests_;
+  }
+
+ private:
+  void run() {
+    namespace lms = protocol::sick_lms2xx;
+    while (!stop_) {
+      const std::vector<std::uint8_t> request = tty_.receive(8);
+      if (request.size() < 8) {
+        continue;
+      }
+      termios line{};
+      ::tcgetattr(tty_.master(), &line);
+      const speed_t speed = ::cfgetospeed(&line);
+      {
+        const std::lock_guard<std::mutex> guard(lock_);
+        requests_.push_back({request, speed});
+      }
+      const speed_t own = rate_bd_ == 9600 ? B9600 : B500000;
+      // QEMU user mode reads B500000 back as 0: there the rate cannot be told, and the fake
+      // answers what a scanner at its rate would, judging by the request alone.
+      if (speed != own && speed != 0) {
+        continue;  // at another rate the scanner sees noise and answers nothing
+      }
+      if (speed == 0 && request[5] == 0x24 && rate_bd_ != 500000) {
+        continue;
+      }
+      std::vector<std::uint8_t> answer = {lms::kAckByte};
+      std::array<std::uint8_t, 64> reply{};
+      const std::array<std::uint8_t, 1> accepted = {0x00};
+      const std::size_t n =
+          lms::encode_reply(reply, lms::command::kSwitchModeReply, accepted, 0x10);
+      answer.insert(answer.end(), reply.begin(), reply.begin() + static_cast<std::ptrdiff_t>(n));
+      tty_.send(answer);
+      if (request[4] == 0x20 && request[5] == 0x48) {
+        rate_bd_ = 500000;  // the new rate, once the reply is out
+      }
+    }
+  }
+
+  PseudoTerminal& tty_;
+  std::uint32_t rate_bd_;
+  std::atomic<bool> stop_{false};
+  std::mutex lock_;
+  std::vector<Request> requests_;
+  std::thread thread_;
+};
+
+const std::vector<std::uint8_t> kContinuousRequest = {0x02, 0x00, 0x02, 0x00,
+                                                      0x20, 0x24, 0x34, 0x08};
+const std::vector<std::uint8_t> kTo500kRequest = {0x02, 0x00, 0x02, 0x00, 0x20, 0x48, 0x58, 0x08};
+
+devices::Lms2xxScannerConfig handshake_config() {
+  devices::Lms2xxScannerConfig config;
+  config.line_baud = 500000;
+  config.power_up_baud = 9600;
+  return config;
+}
+
+TEST(SerialPort, AnLms2xxAtItsPowerUpRateIsBroughtToTheLinesRate) {
+  PseudoTerminal tty;
+  SerialPort port;
+  ASSERT_EQ(port.open(tty.path(), 500000), "");
+  SpscQueue<msg::LaserScan, 8> queue;
+  devices::Lms2xxScanner scanner(port, queue, handshake_config());
+  FakeLms laser(tty, 9600);  // just powered up
+  ASSERT_EQ(scanner.start(), IoStatus::kOk);
+  // Continuous output at 500 kBd (no answer), 500 kBd asked for at 9600 (answered), then
+  // continuous output at 500 kBd (answered).
+  const std::vector<FakeLms::Request> requests = laser.requests();
+  ASSERT_EQ(requests.size(), 3u);
+  EXPECT_EQ(requests[0].bytes, kContinuousRequest);
+  EXPECT_EQ(requests[1].bytes, kTo500kRequest);
+  EXPECT_EQ(requests[2].bytes, kContinuousRequest);
+  if (requests[0].line != 0) {  // not under QEMU user mode
+    EXPECT_EQ(requests[0].line, static_cast<speed_t>(B500000));
+    EXPECT_EQ(requests[2].line, static_cast<speed_t>(B500000));
+  }
+  EXPECT_EQ(requests[1].line, static_cast<speed_t>(B9600));
+  EXPECT_EQ(scanner.mode_switches(), 2u);
+  EXPECT_EQ(port.baud(), 500000u);
+}
+
+TEST(SerialPort, AnLms2xxAlreadyAtTheLinesRateIsOnlyAskedForItsScans) {
+  PseudoTerminal tty;
+  SerialPort port;
+  ASSERT_EQ(port.open(tty.path(), 500000), "");
+  SpscQueue<msg::LaserScan, 8> queue;
+  devices::Lms2xxScanner scanner(port, queue, handshake_config());
+  FakeLms laser(tty, 500000);  // kept the rate since the daemon's last start
+  ASSERT_EQ(scanner.start(), IoStatus::kOk);
+  const std::vector<FakeLms::Request> requests = laser.requests();
+  ASSERT_EQ(requests.size(), 1u);
+  EXPECT_EQ(requests[0].bytes, kContinuousRequest);
+}
+
+TEST(SerialPort, AnLms2xxThatAnswersAtNeitherRateTimesOut) {
+  PseudoTerminal tty;
+  SerialPort port;
+  ASSERT_EQ(port.open(tty.path(), 500000), "");
+  SpscQueue<msg::LaserScan, 8> queue;
+  devices::Lms2xxScanner scanner(port, queue, handshake_config());
+  EXPECT_EQ(scanner.start(), IoStatus::kTimedOut);  // nobody at the other end
+  EXPECT_EQ(port.baud(), 500000u) << "the port is left at the line's rate";
 }
 
 TEST(SerialPort, AGpsReceiverPublishesFixesFromNmeaOnARealTerminal) {

@@ -49,6 +49,16 @@ struct Lms2xxScannerConfig {
   TimestampNs latency_ns = 0;
   // The time between two beams (the B0 telegram does not carry it); 0: unknown.
   double beam_interval_s = 0.0;
+  // The baud-rate handshake (PROTOCOLS.md 2.4): an LMS2xx powers up at 9600 Bd. With
+  // power_up_baud set and line_baud another rate, start() first asks for continuous output at
+  // line_baud (a scanner that kept that rate since the last start answers); when nothing
+  // answers within reply_timeout_ns, it asks at power_up_baud for line_baud (20 4x, answered
+  // at the old rate), moves the port to line_baud, and asks for continuous output again.
+  // 0: no handshake (the scanner is already at the line's rate, or it answers nothing, as the
+  // simulated and recorded ones do).
+  std::uint32_t line_baud = 0;
+  std::uint32_t power_up_baud = 0;
+  TimestampNs reply_timeout_ns = 200'000'000;  // the ACK is due within 60 ms, the reply after
 };
 
 // An LMS2xx's timing when one mirror turn makes a scan (the 1 deg variants; PROTOCOLS.md 2):
@@ -66,7 +76,9 @@ class Lms2xxScanner : public ScanPublisher {
                 const Lms2xxScannerConfig& config);
 
   // Requests continuous output of all values. The scanner acknowledges with 06 and an A0 reply,
-  // which poll() reads (see acks() and mode_switches()).
+  // which poll() reads (see acks() and mode_switches()). With the baud-rate handshake
+  // configured, first brings the scanner and the port to the line's rate; kTimedOut when the
+  // scanner answers at neither rate.
   IoStatus start();
   IoStatus poll(TimestampNs timeout_ns);
 
@@ -76,8 +88,13 @@ class Lms2xxScanner : public ScanPublisher {
 
  private:
   void handle(const protocol::sick_lms2xx::Decoder::Step& step);
+  // Sends a request and reads until the scanner accepts a mode switch (A0 00) or sends a
+  // scan; whether it did within the reply time-out.
+  bool request_answered(std::span<const std::uint8_t> request);
+  [[nodiscard]] IoStatus request(std::span<const std::uint8_t> request);
 
   ByteStream& port_;
+  Lms2xxScannerConfig config_;
   protocol::sick_lms2xx::Decoder decoder_;
   std::array<std::uint8_t, 1024> read_buffer_{};
   MonotonicCounter mode_switches_;
