@@ -55,8 +55,8 @@ Lms2xxScannerConfig lms2xx_single_turn_timing(double field_deg, double resolutio
   return config;
 }
 
-IoStatus Lms2xxScanner::request(std::span<const std::uint8_t> request) {
-  return write_all(port_, request);
+IoStatus Lms2xxScanner::request(std::span<const std::uint8_t> bytes) {
+  return write_all(port_, bytes);
 }
 
 bool Lms2xxScanner::request_answered(std::span<const std::uint8_t> bytes) {

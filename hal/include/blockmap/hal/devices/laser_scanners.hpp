@@ -90,8 +90,8 @@ class Lms2xxScanner : public ScanPublisher {
   void handle(const protocol::sick_lms2xx::Decoder::Step& step);
   // Sends a request and reads until the scanner accepts a mode switch (A0 00) or sends a
   // scan; whether it did within the reply time-out.
-  bool request_answered(std::span<const std::uint8_t> request);
-  [[nodiscard]] IoStatus request(std::span<const std::uint8_t> request);
+  bool request_answered(std::span<const std::uint8_t> bytes);
+  [[nodiscard]] IoStatus request(std::span<const std::uint8_t> bytes);
 
   ByteStream& port_;
   Lms2xxScannerConfig config_;
