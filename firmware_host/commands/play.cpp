@@ -5,7 +5,6 @@
 // on the robot's computer or in the test rig, with nothing attached.
 #include <CLI/CLI.hpp>
 #include <atomic>
-#include <csignal>
 #include <memory>
 #include <optional>
 #include <ostream>
@@ -16,6 +15,7 @@
 #include "cli.hpp"
 #include "commands/commands.hpp"
 #include "daemon/log_player.hpp"
+#include "daemon/stop_signals.hpp"
 
 namespace blockmap::cli {
 namespace {
@@ -66,14 +66,11 @@ int play(const PlayOptions& options, std::ostream& err) {
   }
   err.flush();
   play_stop.store(false);
-  struct sigaction action {};
-  action.sa_handler = on_play_signal;
-  sigemptyset(&action.sa_mask);
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
-  const double played_s = player.play(play_stop);
-  signal(SIGINT, SIG_DFL);
-  signal(SIGTERM, SIG_DFL);
+  double played_s = 0.0;
+  {
+    const daemon::StopSignals stop_signals(on_play_signal);
+    played_s = player.play(play_stop);
+  }
   const daemon::PlayerCounters c = player.counters();
   err << "play: " << played_s << " s of logs: " << c.serial_bytes << " serial bytes ("
       << c.serial_discarded << " with nobody reading), " << c.can_frames << " CAN frames ("

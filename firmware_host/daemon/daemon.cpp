@@ -7,7 +7,6 @@
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
-#include <csignal>
 #include <cstdio>
 #include <limits>
 #include <optional>
@@ -31,6 +30,7 @@
 #include "cli.hpp"
 #include "daemon/device_link.hpp"
 #include "daemon/snapshot.hpp"
+#include "daemon/stop_signals.hpp"
 #include "outputs/output_thread.hpp"
 
 namespace blockmap::cli::daemon {
@@ -888,14 +888,11 @@ int run_daemon(DaemonOptions options, std::ostream& err) {
     return kExitUsage;
   }
   signalled_daemon.store(&daemon, std::memory_order_release);
-  struct sigaction action {};
-  action.sa_handler = on_stop_signal;
-  sigemptyset(&action.sa_mask);
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
-  const int status = daemon.run(err);
-  signal(SIGINT, SIG_DFL);
-  signal(SIGTERM, SIG_DFL);
+  int status = kExitFailure;
+  {
+    const StopSignals stop_signals(on_stop_signal);
+    status = daemon.run(err);
+  }
   signalled_daemon.store(nullptr, std::memory_order_release);
   return status;
 }

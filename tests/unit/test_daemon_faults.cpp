@@ -132,6 +132,21 @@ daemon::DaemonOptions options_on(const fs::path& ptys, const fs::path& out) {
   return options;
 }
 
+// The recorded bytes the fault tests play: 16 s of the simulated usc_block (made once per
+// build); empty, with why in `err`, when the simulation fails.
+fs::path sixteen_seconds(std::string& err) {
+  return testing::simulated_logs({"--world", "usc_block", "--duration-s", "16"}, err);
+}
+
+// An empty folder of the test's own.
+fs::path fresh_scratch(const std::string& name) {
+  fs::path scratch =
+      fs::temp_directory_path() / ("blockmap_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(scratch);
+  fs::create_directories(scratch);
+  return scratch;
+}
+
 struct Wall {
   Eigen::Vector3d normal;
   double d = 0.0;
@@ -161,12 +176,9 @@ const nlohmann::json* device_in(const nlohmann::json& record, const std::string&
 
 TEST(DaemonFaults, UnpluggedCorruptedSilentAndFloodedDevicesAreCountedAndNothingIsLost) {
   std::string err_text;
-  const fs::path logs =
-      testing::simulated_logs({"--world", "usc_block", "--duration-s", "16"}, err_text);
+  const fs::path logs = sixteen_seconds(err_text);
   ASSERT_FALSE(logs.empty()) << err_text;
-  const fs::path scratch =
-      fs::temp_directory_path() / ("blockmap_faults_" + std::to_string(::getpid()));
-  fs::remove_all(scratch);
+  const fs::path scratch = fresh_scratch("faults");
   const fs::path ptys = scratch / "dev";
 
   QueueCan can;
@@ -333,13 +345,9 @@ std::size_t lines_in(const fs::path& path) {
 
 TEST(DaemonFaults, KilledMidRunItResumesFromItsSnapshotAndLosesNoPlane) {
   std::string err_text;
-  const fs::path logs =
-      testing::simulated_logs({"--world", "usc_block", "--duration-s", "16"}, err_text);
+  const fs::path logs = sixteen_seconds(err_text);
   ASSERT_FALSE(logs.empty()) << err_text;
-  const fs::path scratch =
-      fs::temp_directory_path() / ("blockmap_killed_" + std::to_string(::getpid()));
-  fs::remove_all(scratch);
-  fs::create_directories(scratch);
+  const fs::path scratch = fresh_scratch("killed");
 
   // The first run is a process of its own, killed with SIGKILL: no flush, no exit path.
   const pid_t child = ::fork();
