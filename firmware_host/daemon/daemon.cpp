@@ -16,13 +16,7 @@
 #include <utility>
 #include <vector>
 
-#include "blockmap/core/spsc_queue.hpp"
-#include "blockmap/hal/devices/gps_receiver.hpp"
-#include "blockmap/hal/devices/laser_scanners.hpp"
-#include "blockmap/hal/devices/segway_base.hpp"
 #include "blockmap/hal/gps_observations.hpp"
-#include "blockmap/hal/linux/serial_port.hpp"
-#include "blockmap/hal/linux/socket_can_bus.hpp"
 #include "blockmap/hal/linux/steady_clock.hpp"
 #include "blockmap/hal/sim/robot.hpp"
 #include "blockmap/hal/sim/simulated_robot.hpp"
@@ -30,368 +24,18 @@
 #include "cli.hpp"
 #include "daemon/device_link.hpp"
 #include "daemon/snapshot.hpp"
+#include "daemon/sources.hpp"
 #include "daemon/stop_signals.hpp"
 #include "outputs/output_thread.hpp"
 
 namespace blockmap::cli::daemon {
 namespace {
 
-constexpr TimestampNs kEndOfTime = std::numeric_limits<TimestampNs>::max();
 constexpr double kMiB = 1024.0 * 1024.0;
 
 std::string os_error(int error) {
   return std::generic_category().message(error);
 }
-
-TimestampNs ns_from_seconds(double seconds) {
-  return static_cast<TimestampNs>(seconds * static_cast<double>(kNanosecondsPerSecond));
-}
-
-class SocketCanOpener final : public CanOpener {
- public:
-  hal::CanBus& bus() override { return bus_; }
-  std::string open(const hal::DeviceAddress& address) override { return bus_.open(address.name); }
-  void close() override { bus_.close(); }
-
- private:
-  hal::linux_backend::SocketCanBus bus_;
-};
-
-// A queue whose slots are taken at start-up.
-template <typename T>
-class OwnedQueue {
- public:
-  explicit OwnedQueue(std::size_t capacity) : slots_(capacity + 1), queue_(slots_) {}
-  SpscQueueRef<T>& queue() noexcept { return queue_; }
-  [[nodiscard]] std::size_t bytes() const noexcept { return queue_.memory_bytes(); }
-
- private:
-  std::vector<T> slots_;
-  SpscQueueRef<T> queue_;
-};
-
-// What one device publishes and how healthy it is, as the pipeline thread reads it.
-struct DeviceView {
-  const char* name = "";
-  const LinkHealth* link = nullptr;              // none for the simulated robot's devices
-  std::function<std::uint64_t()> published;      // messages
-  std::function<std::uint64_t()> rejected;       // queue full: the newest refused
-  std::function<std::uint64_t()> dropped_bytes;  // what the decoder threw away (all reasons)
-};
-
-// The queues the pipeline drains, whoever fills them.
-struct Inlets {
-  SpscQueueRef<msg::OdometrySample>* odometry = nullptr;
-  SpscQueueRef<msg::ImuSample>* imu = nullptr;
-  SpscQueueRef<msg::GpsFix>* fixes = nullptr;
-  std::vector<SpscQueueRef<msg::LaserScan>*> scans;  // by the mapper's laser index
-  SpscQueueRef<hal::sim::SimulatedRobot::TrueState>* truth = nullptr;  // drained, unused
-};
-
-// Whatever fills the inlets: the robot's devices or the simulated robot.
-class Source {
- public:
-  Source() = default;
-  Source(const Source&) = delete;
-  Source& operator=(const Source&) = delete;
-  virtual ~Source() = default;
-  // Opens the devices and prints their states; empty when mapping can start.
-  [[nodiscard]] virtual std::string start(std::ostream& err) = 0;
-  virtual void stop() = 0;
-  // Nothing older than this will be published any more (kEndOfTime once finished).
-  [[nodiscard]] virtual TimestampNs watermark_ns() const = 0;
-  [[nodiscard]] virtual bool finished() const = 0;
-  // Main thread: prints the devices that came or went since the last call.
-  virtual void report_changes(std::ostream& err) = 0;
-  [[nodiscard]] virtual hal::FixTime fix_time() const = 0;
-  // Where the local frame is anchored when the source knows (else at the first good fix).
-  [[nodiscard]] virtual std::optional<hal::GeodeticPoint> origin() const = 0;
-  [[nodiscard]] virtual std::size_t queue_bytes() const = 0;
-
-  Inlets inlets;
-  std::vector<DeviceView> devices;
-};
-
-// ---------------------------------------------------------------------------------------------
-// The robot's devices, each on its reader thread.
-class RobotSource final : public Source {
- public:
-  RobotSource(const hal::config::DaemonConfig& config, const hal::sim::RobotSpec& robot,
-              std::unique_ptr<CanOpener> can, const hal::Clock& clock)
-      : config_(config), can_(std::move(can)), clock_(clock) {
-    timing_.silent_after_ns = ns_from_seconds(config.silent_after_s);
-    timing_.reconnect_first_ns = ns_from_seconds(config.reconnect_first_s);
-    timing_.reconnect_max_ns = ns_from_seconds(config.reconnect_max_s);
-    odometry_.emplace(config.base_queue_messages);
-    imu_.emplace(config.base_queue_messages);
-    fixes_.emplace(config.fix_queue_messages);
-    inlets.odometry = &odometry_->queue();
-    inlets.imu = &imu_->queue();
-    inlets.fixes = &fixes_->queue();
-    if (config.base) {
-      hal::devices::SegwayBaseConfig base_config;
-      base_config.rmp.model = robot.base.model;
-      base_config.rmp.yaw_sign = robot.base.yaw_sign;
-      base_.emplace(can_->bus(), odometry_->queue(), imu_->queue(), base_config);
-      add_link(
-          "base",
-          LinkDevice{[this] { return open_base(); }, [this] { can_->close(); },
-                     [this](TimestampNs timeout) { return base_->poll(timeout); },
-                     [this] { return base_->samples_published(); }},
-          [this] { return base_->samples_rejected(); },
-          [this] { return base_->decoder().drops().total(); });
-    }
-    for (std::size_t i = 0; i < config.lasers.size(); ++i) {
-      if (!config.lasers[i]) {
-        continue;
-      }
-      hal::devices::Lms2xxScannerConfig laser_config = hal::sim::lms2xx_config_for(robot.lasers[i]);
-      laser_config.line_baud = config.lasers[i]->baud;
-      laser_config.power_up_baud = config.lms_power_up_baud;
-      auto laser =
-          std::make_unique<Laser>(*config.lasers[i], config.scan_queue_messages, laser_config);
-      Laser* l = laser.get();
-      inlets.scans.resize(i + 1, nullptr);
-      inlets.scans[i] = &l->scans.queue();
-      l->name = "laser_" + robot.lasers[i].name;
-      lasers_.push_back(std::move(laser));
-      add_link(
-          l->name,
-          LinkDevice{[l] { return l->open(); }, [l] { l->port.close(); },
-                     [l](TimestampNs timeout) { return l->device.poll(timeout); },
-                     [l] { return l->device.scans_published(); }},
-          [l] { return l->device.scans_rejected(); },
-          [l] { return l->device.decoder().drops().total(); });
-    }
-    if (config.gps) {
-      gps_.emplace(gps_port_, fixes_->queue(), hal::devices::GpsReceiverConfig{});
-      add_link(
-          "gps",
-          LinkDevice{[this] { return gps_port_.open(config_.gps->name, config_.gps->baud); },
-                     [this] { gps_port_.close(); },
-                     [this](TimestampNs timeout) { return gps_->poll(timeout); },
-                     [this] { return gps_->fixes_published(); }},
-          [this] { return gps_->fixes_rejected(); },
-          [this] { return gps_->decoder().drops().total(); });
-    }
-  }
-  ~RobotSource() override { stop(); }
-
-  std::string start(std::ostream& err) override {
-    for (const auto& link : links_) {
-      link->start();
-      const LinkHealth& health = link->health();
-      const LinkState state = health.state.load(std::memory_order_acquire);
-      err << "device " << link->name() << ": " << to_string(state);
-      if (state != LinkState::kUp) {
-        err << " (" << link->last_problem() << "); retrying in the background";
-      }
-      err << '\n';
-      seen_.push_back(state);
-    }
-    return {};
-  }
-  void stop() override {
-    for (const auto& link : links_) {
-      link->stop();
-    }
-  }
-  [[nodiscard]] TimestampNs watermark_ns() const override {
-    TimestampNs least = kEndOfTime;
-    for (const auto& link : links_) {
-      least = std::min(least, link->health().watermark_ns.load(std::memory_order_acquire));
-    }
-    return least;
-  }
-  [[nodiscard]] bool finished() const override { return false; }
-  void report_changes(std::ostream& err) override {
-    for (std::size_t i = 0; i < links_.size(); ++i) {
-      const LinkHealth& health = links_[i]->health();
-      const LinkState state = health.state.load(std::memory_order_acquire);
-      if (state == seen_[i] || state == LinkState::kStopped) {
-        continue;
-      }
-      err << "device " << links_[i]->name() << ": " << to_string(state);
-      if (state == LinkState::kUp) {
-        err << " (opened " << health.opens.load(std::memory_order_relaxed) << " times)";
-      } else {
-        err << " (" << links_[i]->last_problem() << "); reopening";
-      }
-      err << '\n';
-      seen_[i] = state;
-    }
-  }
-  [[nodiscard]] hal::FixTime fix_time() const override { return hal::FixTime::kReceiveClock; }
-  [[nodiscard]] std::optional<hal::GeodeticPoint> origin() const override { return std::nullopt; }
-  [[nodiscard]] std::size_t queue_bytes() const override {
-    std::size_t bytes = odometry_->bytes() + imu_->bytes() + fixes_->bytes();
-    for (const auto& laser : lasers_) {
-      bytes += laser->scans.bytes();
-    }
-    return bytes;
-  }
-
- private:
-  struct Laser {
-    Laser(hal::DeviceAddress address_in, std::size_t queue_messages,
-          const hal::devices::Lms2xxScannerConfig& config)
-        : address(std::move(address_in)),
-          scans(queue_messages),
-          device(port, scans.queue(), config) {}
-    std::string open() {
-      if (std::string problem = port.open(address.name, address.baud); !problem.empty()) {
-        return problem;
-      }
-      // Continuous output again: a laser that was power-cycled has forgotten it (and its rate,
-      // which the handshake brings back when configured).
-      if (const IoStatus status = device.start(); status != IoStatus::kOk) {
-        port.close();
-        return address.name + ": the laser did not start (" +
-               std::string(blockmap::to_string(status)) + ")";
-      }
-      return {};
-    }
-    hal::DeviceAddress address;
-    std::string name;
-    hal::linux_backend::SerialPort port;
-    OwnedQueue<msg::LaserScan> scans;
-    hal::devices::Lms2xxScanner device;
-  };
-
-  void add_link(const std::string& name, LinkDevice device, std::function<std::uint64_t()> rejected,
-                std::function<std::uint64_t()> dropped_bytes) {
-    DeviceView view;
-    view.published = device.published;
-    view.rejected = std::move(rejected);
-    view.dropped_bytes = std::move(dropped_bytes);
-    links_.push_back(std::make_unique<DeviceLink>(name, std::move(device), timing_, clock_));
-    view.name = links_.back()->name().c_str();
-    view.link = &links_.back()->health();
-    devices.push_back(std::move(view));
-  }
-  std::string open_base() {
-    if (std::string problem = can_->open(*config_.base); !problem.empty()) {
-      return problem;
-    }
-    if (base_->install_filters() != IoStatus::kOk) {
-      can_->close();
-      return config_.base->name + ": the RMP's acceptance filters were refused";
-    }
-    return {};
-  }
-
-  hal::config::DaemonConfig config_;
-  std::unique_ptr<CanOpener> can_;
-  const hal::Clock& clock_;
-  LinkTiming timing_;
-  std::optional<OwnedQueue<msg::OdometrySample>> odometry_;
-  std::optional<OwnedQueue<msg::ImuSample>> imu_;
-  std::optional<OwnedQueue<msg::GpsFix>> fixes_;
-  std::optional<hal::devices::SegwayBase> base_;
-  std::vector<std::unique_ptr<Laser>> lasers_;
-  hal::linux_backend::SerialPort gps_port_;
-  std::optional<hal::devices::GpsReceiver> gps_;
-  std::vector<std::unique_ptr<DeviceLink>> links_;
-  std::vector<LinkState> seen_;
-};
-
-// ---------------------------------------------------------------------------------------------
-// The simulated robot (`[devices] robot = "sim:WORLD"`): its simulation and devices on one
-// thread, as fast as the pipeline takes their messages.
-class SimSource final : public Source {
- public:
-  SimSource(const hal::sim::World& world, const hal::sim::RobotSpec& robot,
-            const hal::sim::SimOptions& options, std::string name)
-      : robot_(std::make_unique<hal::sim::SimulatedRobot>(world, robot, options)),
-        name_(std::move(name)) {
-    inlets.odometry = &robot_->odometry();
-    inlets.imu = &robot_->imu();
-    inlets.fixes = &robot_->fixes();
-    inlets.truth = &robot_->truth();
-    hal::sim::SimulatedRobot* r = robot_.get();
-    devices.push_back(DeviceView{"base", nullptr, [r] { return r->base().samples_published(); },
-                                 [r] { return r->base().samples_rejected(); },
-                                 [r] { return r->base().decoder().drops().total(); }});
-    laser_names_.reserve(robot.lasers.size());
-    for (std::size_t i = 0; i < r->laser_count(); ++i) {
-      inlets.scans.push_back(&r->scans(i));
-      laser_names_.push_back("laser_" + robot.lasers[i].name);
-      devices.push_back(DeviceView{laser_names_.back().c_str(), nullptr,
-                                   [r, i] { return r->laser(i).scans_published(); },
-                                   [r, i] { return r->laser(i).scans_rejected(); },
-                                   [r, i] { return r->laser(i).decoder().drops().total(); }});
-    }
-    devices.push_back(DeviceView{"gps", nullptr, [r] { return r->gps().fixes_published(); },
-                                 [r] { return r->gps().fixes_rejected(); },
-                                 [r] { return r->gps().decoder().drops().total(); }});
-  }
-  ~SimSource() override { stop(); }
-
-  std::string start(std::ostream& err) override {
-    if (robot_->start() != IoStatus::kOk) {
-      return "the simulated lasers did not start";
-    }
-    err << "device " << name_ << ": the simulated robot, " << robot_->laser_count()
-        << " lasers, faster than real time\n";
-    watermark_ns_.store(robot_->simulation().now_ns(), std::memory_order_release);
-    thread_ = std::thread([this] { run(); });
-    return {};
-  }
-  void stop() override {
-    stop_.store(true, std::memory_order_release);
-    if (thread_.joinable()) {
-      thread_.join();
-    }
-  }
-  [[nodiscard]] TimestampNs watermark_ns() const override {
-    return finished() ? kEndOfTime : watermark_ns_.load(std::memory_order_acquire);
-  }
-  [[nodiscard]] bool finished() const override { return finished_.load(std::memory_order_acquire); }
-  void report_changes(std::ostream& /*err*/) override {}
-  // The simulation's clock is UTC (the world's start_utc), as a recorded log's is.
-  [[nodiscard]] hal::FixTime fix_time() const override { return hal::FixTime::kUtc; }
-  [[nodiscard]] std::size_t queue_bytes() const override { return 0; }  // the robot's own
-  [[nodiscard]] double elapsed_s() const { return robot_->simulation().elapsed_s(); }
-  // The world's site, as `blockmap run` and `simulate` anchor it.
-  [[nodiscard]] std::optional<hal::GeodeticPoint> origin() const override {
-    return robot_->simulation().world().site.origin;
-  }
-
- private:
-  // Room in every queue for what one more step can publish: the simulation waits for the
-  // pipeline rather than have its devices refuse messages.
-  [[nodiscard]] bool room() const {
-    const auto has_room = [](const auto& queue, std::size_t margin) {
-      return queue.size_approx() + margin <= queue.capacity();
-    };
-    if (!has_room(*inlets.odometry, 16) || !has_room(*inlets.imu, 16) ||
-        !has_room(*inlets.fixes, 4) || !has_room(*inlets.truth, 16)) {
-      return false;
-    }
-    return std::all_of(inlets.scans.begin(), inlets.scans.end(),
-                       [&](const auto* scans) { return has_room(*scans, 2); });
-  }
-  void run() {
-    bool more = true;
-    while (more && !stop_.load(std::memory_order_acquire)) {
-      if (!room()) {
-        std::this_thread::yield();
-        continue;
-      }
-      more = robot_->advance();
-      watermark_ns_.store(robot_->simulation().now_ns(), std::memory_order_release);
-    }
-    finished_.store(true, std::memory_order_release);
-  }
-
-  std::unique_ptr<hal::sim::SimulatedRobot> robot_;
-  std::string name_;
-  std::vector<std::string> laser_names_;
-  std::thread thread_;
-  std::atomic<bool> stop_{false};
-  std::atomic<bool> finished_{false};
-  std::atomic<TimestampNs> watermark_ns_{0};
-};
 
 // ---------------------------------------------------------------------------------------------
 // The pipeline thread: the oldest message no link can still undercut goes to the mapper, and
@@ -645,10 +289,6 @@ class Pipeline {
 
 }  // namespace
 
-std::unique_ptr<CanOpener> socket_can_opener() {
-  return std::make_unique<SocketCanOpener>();
-}
-
 class Daemon::Impl {
  public:
   Impl(DaemonOptions options, std::unique_ptr<CanOpener> can)
@@ -690,10 +330,9 @@ class Daemon::Impl {
       if (std::string problem = hal::sim::repeat_laps(world, options_.laps); !problem.empty()) {
         return problem;
       }
-      source_ = std::make_unique<SimSource>(world, robot, options_.sim,
-                                            hal::to_string(*config.whole_robot));
+      source_ = sim_source(world, robot, options_.sim, hal::to_string(*config.whole_robot));
     } else {
-      source_ = std::make_unique<RobotSource>(options_.config, robot, std::move(can_), clock_);
+      source_ = robot_source(options_.config, robot, std::move(can_), clock_);
     }
     // A map left by a run that ended (or crashed) in the same folder is carried on: its planes
     // come back, its frame is kept, and the streams are appended to.

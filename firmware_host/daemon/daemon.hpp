@@ -25,25 +25,9 @@
 #include "blockmap/hal/config/daemon_config.hpp"
 #include "blockmap/hal/sim/simulation.hpp"
 #include "commands/mapping.hpp"
+#include "daemon/sources.hpp"
 
 namespace blockmap::cli::daemon {
-
-// Where a can: address is opened. The robot's is SocketCAN; tests give their own (the host's
-// kernel has no CAN).
-class CanOpener {
- public:
-  CanOpener() = default;
-  CanOpener(const CanOpener&) = delete;
-  CanOpener& operator=(const CanOpener&) = delete;
-  virtual ~CanOpener() = default;
-  [[nodiscard]] virtual hal::CanBus& bus() = 0;
-  // Empty when it worked, else one line why not.
-  [[nodiscard]] virtual std::string open(const hal::DeviceAddress& address) = 0;
-  virtual void close() = 0;
-};
-
-// SocketCAN.
-[[nodiscard]] std::unique_ptr<CanOpener> socket_can_opener();
 
 struct DaemonOptions {
   hal::config::DaemonConfig config;
