@@ -15,6 +15,9 @@ gps = "serial:/tmp/dev/gps@9600"
 reconnect_first_s = 0.05
 reconnect_max_s = 0.2
 snapshot_every_s = 5
+# The guest's ARM is emulated, several times slower than a robot's: an extraction can hold the
+# pipeline for over the default queue's 0.4 s of scans. 1.7 s of them, so none is refused.
+scan_queue_messages = 128
 CONFIG
 blockmap run --config /tmp/robot.toml --out /tmp/out 2> /tmp/run.log &
 daemon=$!
