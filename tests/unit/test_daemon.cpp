@@ -20,6 +20,7 @@
 
 #include "cli.hpp"
 #include "cli_runner.hpp"
+#include "daemon_walls.hpp"
 
 namespace blockmap::cli {
 namespace {
@@ -27,6 +28,9 @@ namespace {
 namespace fs = std::filesystem;
 using testing::read_file;
 using testing::run_cli;
+using testing::Wall;
+using testing::walls_of;
+using testing::within_spread;
 
 fs::path scratch(const std::string& name) {
   return fs::temp_directory_path() / ("blockmap_daemon_" + name + "_" + std::to_string(::getpid()));
@@ -177,34 +181,6 @@ TEST(Daemon, DevicesThatAreNotThereAreReportedAndRetriedUntilStopped) {
 namespace blockmap::cli {
 namespace {
 
-struct WallPlane {
-  Eigen::Vector3d normal;
-  double d = 0.0;
-  double support = 0.0;
-};
-
-std::vector<WallPlane> large_walls(const fs::path& planes_json, double min_support) {
-  std::vector<WallPlane> walls;
-  const nlohmann::json list = nlohmann::json::parse(read_file(planes_json));
-  for (const nlohmann::json& plane : list["planes"]) {
-    if (plane["kind"] == "wall" && plane["support"].get<double>() >= min_support) {
-      walls.push_back({Eigen::Vector3d(plane["normal"][0], plane["normal"][1], plane["normal"][2]),
-                       plane["d"].get<double>(), plane["support"].get<double>()});
-    }
-  }
-  return walls;
-}
-
-// Within 8 deg and 3 m: the particle filter's run-to-run spread (docs/daemon.md).
-bool among(const WallPlane& wall, const std::vector<WallPlane>& walls) {
-  return std::any_of(walls.begin(), walls.end(), [&](const WallPlane& other) {
-    const double cos_angle = wall.normal.dot(other.normal);
-    const double sign = cos_angle < 0.0 ? -1.0 : 1.0;
-    return std::abs(cos_angle) > std::cos(8.0 * std::numbers::pi / 180.0) &&
-           std::abs(wall.d - sign * other.d) < 3.0;
-  });
-}
-
 nlohmann::json last_health(const fs::path& health_jsonl) {
   std::istringstream lines(read_file(health_jsonl));
   nlohmann::json last;
@@ -237,16 +213,16 @@ TEST(Daemon, AMinuteWithoutGpsIsMappedOnOdometryAndTheBlockIsStillTheBlock) {
   EXPECT_NEAR(fixes_a - fixes_b, 240, 8) << fixes_a << " and " << fixes_b;
   EXPECT_EQ(health_b["mapper"]["scans_projected"], health_a["mapper"]["scans_projected"]);
   // The map: the block's walls, as without the silence (within the filter's own spread).
-  const std::vector<WallPlane> walls_a = large_walls(with_gps / "planes.json", 20000.0);
-  const std::vector<WallPlane> walls_b = large_walls(without / "planes.json", 20000.0);
+  const std::vector<Wall> walls_a = walls_of(with_gps / "planes.json", 20000.0);
+  const std::vector<Wall> walls_b = walls_of(without / "planes.json", 20000.0);
   EXPECT_GE(walls_a.size(), 3u);
-  for (const WallPlane& wall : walls_a) {
-    EXPECT_TRUE(among(wall, walls_b))
+  for (const Wall& wall : walls_a) {
+    EXPECT_TRUE(within_spread(wall, walls_b))
         << "a wall mapped with GPS, lost without: n = " << wall.normal.transpose()
         << ", d = " << wall.d;
   }
-  for (const WallPlane& wall : walls_b) {
-    EXPECT_TRUE(among(wall, walls_a))
+  for (const Wall& wall : walls_b) {
+    EXPECT_TRUE(within_spread(wall, walls_a))
         << "a wall mapped only without GPS: n = " << wall.normal.transpose() << ", d = " << wall.d;
   }
   if (!HasFailure()) {

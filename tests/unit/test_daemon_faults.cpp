@@ -34,12 +34,16 @@
 #include "daemon/daemon.hpp"
 #include "daemon/log_player.hpp"
 #include "daemon/snapshot.hpp"
+#include "daemon_walls.hpp"
 
 namespace blockmap::cli {
 namespace {
 
 namespace fs = std::filesystem;
 using testing::read_file;
+using testing::Wall;
+using testing::walls_of;
+using testing::within_spread;
 
 // A CAN bus between the player (a CanSink) and the daemon (a CanOpener's bus), in-process.
 class QueueCan final : public daemon::CanSink, public daemon::CanOpener {
@@ -145,24 +149,6 @@ fs::path fresh_scratch(const std::string& name) {
   fs::remove_all(scratch);
   fs::create_directories(scratch);
   return scratch;
-}
-
-struct Wall {
-  Eigen::Vector3d normal;
-  double d = 0.0;
-  double support = 0.0;
-};
-
-std::vector<Wall> walls_of(const fs::path& planes_json) {
-  std::vector<Wall> walls;
-  const nlohmann::json list = nlohmann::json::parse(read_file(planes_json));
-  for (const nlohmann::json& plane : list["planes"]) {
-    if (plane["kind"] == "wall") {
-      walls.push_back({Eigen::Vector3d(plane["normal"][0], plane["normal"][1], plane["normal"][2]),
-                       plane["d"].get<double>(), plane["support"].get<double>()});
-    }
-  }
-  return walls;
 }
 
 const nlohmann::json* device_in(const nlohmann::json& record, const std::string& name) {
@@ -418,21 +404,6 @@ TEST(DaemonFaults, KilledMidRunItResumesFromItsSnapshotAndLosesNoPlane) {
 
 namespace blockmap::cli {
 namespace {
-
-// Whether `wall` is among `walls` within the particle filter's run-to-run spread: on a minute
-// of the simulated usc_block, replays of the same logs with seeds 1, 2 and 3 put the largest
-// walls up to 5 deg and 2.3 m apart (docs/daemon.md).
-bool within_spread(const Wall& wall, const std::vector<Wall>& walls) {
-  for (const Wall& other : walls) {
-    const double cos_angle = wall.normal.dot(other.normal);
-    const double sign = cos_angle < 0.0 ? -1.0 : 1.0;
-    if (std::abs(cos_angle) > std::cos(8.0 * std::numbers::pi / 180.0) &&
-        std::abs(wall.d - sign * other.d) < 3.0) {
-      return true;
-    }
-  }
-  return false;
-}
 
 // The guest's full session (tests/system/guest_session.sh): the daemon mapped from vcan0 and
 // ptys in the arm64 guest's kernel; its map against the replay of the same logs.
