@@ -4,6 +4,8 @@
 #   nlohmann     JSON output of firmware_host and golden files in tests (header-only)
 #   toml++       robot and world configuration files (header-only mode)
 #   GeographicLib  geodetic <-> local ENU frames (hal/geodesy)
+#   libgpiod     GPIO lines on the robot (hal/linux; bookworm's 1.6)
+#   libusb-1.0   USB bulk transfers to a SICK TiM (hal/linux)
 #   GoogleTest   the test tiers: the host package, or built from /usr/src/googletest with the
 #                cross compiler when cross-compiling
 #   benchmark    Google Benchmark, host builds with BLOCKMAP_BUILD_BENCHMARKS only
@@ -45,14 +47,14 @@ if(CMAKE_CROSSCOMPILING)
 endif()
 add_library(blockmap::tomlplusplus ALIAS blockmap_tomlplusplus)
 
-# GeographicLib. The host links Debian's -dev package. Cross builds link the target's library
-# from Debian's arm64/armhf package, which `scripts/install-deps test` unpacks into a private
-# folder (BLOCKMAP_TARGET_LIBS_DIR; installing it with multiarch would bring the target's libc
-# into /lib/<triple>, where QEMU's loader finds it before the cross toolchain's). The headers are
-# the host's: they do not depend on the architecture.
-find_path(BLOCKMAP_GEOGRAPHICLIB_INCLUDE_DIR GeographicLib/LocalCartesian.hpp PATHS /usr/include
-          NO_CMAKE_FIND_ROOT_PATH REQUIRED)
-add_library(blockmap_geographiclib INTERFACE)
+# Compiled libraries: GeographicLib (hal/geodesy), libgpiod 1.6 (hal/linux GPIO lines) and
+# libusb-1.0 (hal/linux USB bulk transfers). The host links Debian's -dev packages. Cross builds
+# link the target's shared object from Debian's arm64/armhf package, which
+# `scripts/install-deps test` unpacks into a private folder (BLOCKMAP_TARGET_LIBS_DIR;
+# installing it with multiarch would bring the target's libc into /lib/<triple>, where QEMU's
+# loader finds it before the cross toolchain's). The headers are the host's: they do not depend
+# on the architecture, and only the package's own header or folder is exposed, so that the
+# host's C library headers never come before the cross compiler's.
 if(CMAKE_CROSSCOMPILING)
   if(DEFINED ENV{BLOCKMAP_TARGET_LIBS})
     set(default_target_libs "$ENV{BLOCKMAP_TARGET_LIBS}")
@@ -63,22 +65,41 @@ if(CMAKE_CROSSCOMPILING)
   endif()
   set(BLOCKMAP_TARGET_LIBS_DIR "${default_target_libs}" CACHE PATH
       "where scripts/install-deps unpacks the cross builds' target libraries")
-  set(geographiclib_so
-      ${BLOCKMAP_TARGET_LIBS_DIR}/${BLOCKMAP_TARGET_DEB_ARCH}/usr/lib/${BLOCKMAP_TARGET_TRIPLE}/libGeographicLib.so.23)
-  if(NOT EXISTS ${geographiclib_so})
-    message(FATAL_ERROR "${geographiclib_so} is missing: run scripts/install-deps test")
-  endif()
-  file(MAKE_DIRECTORY ${CMAKE_BINARY_DIR}/_isolated/geographiclib)
-  file(CREATE_LINK ${BLOCKMAP_GEOGRAPHICLIB_INCLUDE_DIR}/GeographicLib
-       ${CMAKE_BINARY_DIR}/_isolated/geographiclib/GeographicLib SYMBOLIC)
-  target_include_directories(blockmap_geographiclib SYSTEM INTERFACE
-                             ${CMAKE_BINARY_DIR}/_isolated/geographiclib)
-  target_link_libraries(blockmap_geographiclib INTERFACE ${geographiclib_so})
-else()
-  find_library(BLOCKMAP_GEOGRAPHICLIB_LIBRARY GeographicLib REQUIRED)
-  target_link_libraries(blockmap_geographiclib INTERFACE ${BLOCKMAP_GEOGRAPHICLIB_LIBRARY})
 endif()
-add_library(blockmap::geographiclib ALIAS blockmap_geographiclib)
+
+# blockmap::NAME from HEADER (a path under /usr/include), the host's library LIBRARY and the
+# target's shared object SONAME, with the target libraries it needs in turn (ARGN: linked too,
+# since the binaries' RUNPATH reaches only their direct dependencies under QEMU).
+function(blockmap_compiled_library name header library soname)
+  string(TOUPPER ${name} upper)
+  string(REGEX REPLACE "/.*" "" top ${header})
+  find_path(BLOCKMAP_${upper}_INCLUDE_DIR ${header} PATHS /usr/include NO_CMAKE_FIND_ROOT_PATH
+            REQUIRED)
+  add_library(blockmap_${name} INTERFACE)
+  if(CMAKE_CROSSCOMPILING)
+    set(libs)
+    foreach(object ${soname} ${ARGN})
+      set(so ${BLOCKMAP_TARGET_LIBS_DIR}/${BLOCKMAP_TARGET_DEB_ARCH}/usr/lib/${BLOCKMAP_TARGET_TRIPLE}/${object})
+      if(NOT EXISTS ${so})
+        message(FATAL_ERROR "${so} is missing: run scripts/install-deps test")
+      endif()
+      list(APPEND libs ${so})
+    endforeach()
+    set(isolated ${CMAKE_BINARY_DIR}/_isolated/${name})
+    file(MAKE_DIRECTORY ${isolated})
+    file(CREATE_LINK ${BLOCKMAP_${upper}_INCLUDE_DIR}/${top} ${isolated}/${top} SYMBOLIC)
+    target_include_directories(blockmap_${name} SYSTEM INTERFACE ${isolated})
+    target_link_libraries(blockmap_${name} INTERFACE ${libs})
+  else()
+    find_library(BLOCKMAP_${upper}_LIBRARY ${library} REQUIRED)
+    target_link_libraries(blockmap_${name} INTERFACE ${BLOCKMAP_${upper}_LIBRARY})
+  endif()
+  add_library(blockmap::${name} ALIAS blockmap_${name})
+endfunction()
+blockmap_compiled_library(geographiclib GeographicLib/LocalCartesian.hpp GeographicLib
+                          libGeographicLib.so.23)
+blockmap_compiled_library(gpiod gpiod.h gpiod libgpiod.so.2)
+blockmap_compiled_library(usb libusb-1.0/libusb.h usb-1.0 libusb-1.0.so.0 libudev.so.1)
 
 if(BLOCKMAP_BUILD_TESTS)
   if(CMAKE_CROSSCOMPILING)

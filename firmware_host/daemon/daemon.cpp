@@ -58,6 +58,7 @@ class Pipeline {
   void set_health_file(std::FILE* file) noexcept { health_ = file; }
   void set_snapshots(SnapshotWriter* snapshots) noexcept { snapshots_ = snapshots; }
   void set_output_thread(OutputThread* output) noexcept { output_ = output; }
+  void set_panel(const Panel* panel) noexcept { panel_ = panel; }
 
   // A snapshot of the map now, written at once (once the pipeline thread has ended); the last
   // one stays when this one cannot be written.
@@ -155,7 +156,11 @@ class Pipeline {
         have_fix_ = false;
       } else {
         const auto laser = static_cast<std::size_t>(which);
-        static_cast<void>(mapper.on_scan(laser, scans_[laser]));
+        if (mapping_enabled()) {
+          static_cast<void>(mapper.on_scan(laser, scans_[laser]));
+        } else {
+          ++scans_paused_;  // the switch is off: the pose goes on, the map waits
+        }
         have_scan_[laser] = false;
       }
       first_stamp_ns_ = std::min(first_stamp_ns_, oldest_ns);
@@ -184,6 +189,10 @@ class Pipeline {
     }
     const std::size_t count = session_.mapper().save_planes(snapshots_->planes());
     output_->put_snapshot(snapshots_->encode(snapshot_header(), count));
+  }
+
+  [[nodiscard]] bool mapping_enabled() const noexcept {
+    return panel_ == nullptr || panel_->mapping_enabled().load(std::memory_order_acquire);
   }
 
   [[nodiscard]] SnapshotHeader snapshot_header() const {
@@ -248,7 +257,7 @@ class Pipeline {
         "\"scans\":%llu,\"scans_projected\":%llu,\"points\":%llu,\"extractions\":%llu,"
         "\"final_planes\":%zu,\"late\":%llu,\"scans_refused\":%llu},"
         "\"snapshots\":%llu,\"snapshot_failures\":%llu,\"snapshots_skipped\":%llu,"
-        "\"output_waits\":%llu}\n",
+        "\"output_waits\":%llu,",
         static_cast<unsigned long long>(c.base_samples), static_cast<unsigned long long>(c.fixes),
         static_cast<unsigned long long>(c.fixes_rejected), static_cast<unsigned long long>(c.scans),
         static_cast<unsigned long long>(c.scans_projected),
@@ -259,6 +268,13 @@ class Pipeline {
         static_cast<unsigned long long>(output_ != nullptr ? output_->snapshot_failures() : 0),
         static_cast<unsigned long long>(snapshots_skipped_),
         static_cast<unsigned long long>(output_ != nullptr ? output_->waits() : 0));
+    std::fprintf(
+        health_,
+        "\"mapping_enabled\":%s,\"scans_paused\":%llu,\"switch_changes\":%llu,"
+        "\"switch_failures\":%llu}\n",
+        mapping_enabled() ? "true" : "false", static_cast<unsigned long long>(scans_paused_),
+        static_cast<unsigned long long>(panel_ != nullptr ? panel_->switch_changes() : 0),
+        static_cast<unsigned long long>(panel_ != nullptr ? panel_->switch_failures() : 0));
     std::fflush(health_);
   }
 
@@ -284,15 +300,17 @@ class Pipeline {
   std::FILE* health_ = nullptr;
   SnapshotWriter* snapshots_ = nullptr;
   OutputThread* output_ = nullptr;
+  const Panel* panel_ = nullptr;
   std::uint64_t snapshots_skipped_ = 0;
+  std::uint64_t scans_paused_ = 0;
 };
 
 }  // namespace
 
 class Daemon::Impl {
  public:
-  Impl(DaemonOptions options, std::unique_ptr<CanOpener> can)
-      : options_(std::move(options)), can_(std::move(can)) {}
+  Impl(DaemonOptions options, std::unique_ptr<CanOpener> can, std::unique_ptr<GpioOpener> gpio)
+      : options_(std::move(options)), can_(std::move(can)), panel_(std::move(gpio)) {}
   ~Impl() {
     if (health_ != nullptr) {
       std::fclose(health_);
@@ -305,9 +323,6 @@ class Daemon::Impl {
     if (config.whole_robot && config.whole_robot->backend == hal::DeviceBackend::kReplay) {
       return "devices.robot: a folder of logs is mapped by `blockmap replay " +
              config.whole_robot->name + "`";
-    }
-    if (config.status_led || config.enable_switch) {
-      return "devices.status_led/enable_switch: this build has no GPIO backend yet (libgpiod)";
     }
     if (!config.whole_robot) {
       hal::config::check_laser_count(config, robot.lasers.size(), options_.config_source);
@@ -386,6 +401,7 @@ class Daemon::Impl {
       pipeline_->set_snapshots(&*snapshots_);
     }
     pipeline_->set_output_thread(&*output_thread_);
+    pipeline_->set_panel(&panel_);
     if (snapshots_) {
       output_thread_->set_snapshots(&*snapshots_);
     }
@@ -399,6 +415,9 @@ class Daemon::Impl {
       // A buffer of its own, taken now, so that writing a record never allocates.
       std::setvbuf(health_, health_buffer_.data(), _IOFBF, health_buffer_.size());
       pipeline_->set_health_file(health_);
+    }
+    if (std::string problem = panel_.start(config, err); !problem.empty()) {
+      return problem;
     }
     return source_->start(err);
   }
@@ -423,12 +442,17 @@ class Daemon::Impl {
            !done.load(std::memory_order_acquire)) {
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
       source_->report_changes(err);
+      panel_.report_changes(err);
+      panel_.show(
+          led_pattern(panel_.mapping_enabled().load(std::memory_order_acquire), every_device_up()),
+          clock_.now_ns());
     }
     if (stop_requested.load(std::memory_order_acquire)) {
       err << "daemon: stopping: the devices are closed, what they sent is mapped and written\n";
     }
     // The readers stop first, so that the drain sees everything they published.
     source_->stop();
+    panel_.stop();
     drain.store(true, std::memory_order_release);
     pipeline_thread.join();
     // What the output thread holds is written (a snapshot in hand among it); then the last
@@ -470,6 +494,14 @@ class Daemon::Impl {
     }
   }
 
+  [[nodiscard]] bool every_device_up() const {
+    return std::all_of(
+        source_->devices.begin(), source_->devices.end(), [](const DeviceView& device) {
+          return device.link == nullptr ||
+                 device.link->state.load(std::memory_order_acquire) == LinkState::kUp;
+        });
+  }
+
   void report_devices(std::ostream& err) const {
     for (const DeviceView& device : source_->devices) {
       err << "device " << device.name << ": " << device.published() << " messages, "
@@ -481,10 +513,16 @@ class Daemon::Impl {
       }
       err << '\n';
     }
+    if (panel_.switch_changes() > 0 || panel_.switch_failures() > 0 || panel_.led_failures() > 0) {
+      err << "panel: the enable switch changed " << panel_.switch_changes() << " times, "
+          << panel_.switch_failures() << " failed reads; " << panel_.led_failures()
+          << " failed LED writes\n";
+    }
   }
 
   DaemonOptions options_;
   std::unique_ptr<CanOpener> can_;
+  Panel panel_;
   hal::linux_backend::SteadyClock clock_;
   MappingSession session_;
   std::unique_ptr<Source> source_;
@@ -495,8 +533,9 @@ class Daemon::Impl {
   std::array<char, 1 << 16> health_buffer_{};
 };
 
-Daemon::Daemon(DaemonOptions options, std::unique_ptr<CanOpener> can)
-    : impl_(std::make_unique<Impl>(std::move(options), std::move(can))) {}
+Daemon::Daemon(DaemonOptions options, std::unique_ptr<CanOpener> can,
+               std::unique_ptr<GpioOpener> gpio)
+    : impl_(std::make_unique<Impl>(std::move(options), std::move(can), std::move(gpio))) {}
 
 Daemon::~Daemon() = default;
 

@@ -3,7 +3,8 @@
 //   reader threads (DeviceLink)          pipeline thread              main thread
 //   CAN -> SegwayBase    -> queue  |
 //   tty -> Lms2xxScanner -> queue  |-> merge by time -> Mapper        signals, devices
-//   tty -> GpsReceiver   -> queue  |   -> outputs, health.jsonl      coming and going
+//   tty -> GpsReceiver   -> queue  |   -> outputs, health.jsonl      coming and going,
+//   gpio -> enable switch (panel.hpp) -> paused?                      the status LED
 //
 // One reader thread per device does the blocking I/O and the decoding and keeps its device
 // open (device_link.hpp); the pipeline thread owns every piece of algorithm state and the
@@ -25,6 +26,7 @@
 #include "blockmap/hal/config/daemon_config.hpp"
 #include "blockmap/hal/sim/simulation.hpp"
 #include "commands/mapping.hpp"
+#include "daemon/panel.hpp"
 #include "daemon/sources.hpp"
 
 namespace blockmap::cli::daemon {
@@ -42,7 +44,8 @@ struct DaemonOptions {
 
 class Daemon {
  public:
-  explicit Daemon(DaemonOptions options, std::unique_ptr<CanOpener> can = socket_can_opener());
+  explicit Daemon(DaemonOptions options, std::unique_ptr<CanOpener> can = socket_can_opener(),
+                  std::unique_ptr<GpioOpener> gpio = gpiod_opener());
   ~Daemon();
   Daemon(const Daemon&) = delete;
   Daemon& operator=(const Daemon&) = delete;

@@ -73,6 +73,14 @@ void read_devices(TableReader& t, DaemonConfig& c) {
                            "an LED is a GPIO line (gpio:gpiochip0:5)");
   c.enable_switch = device_at(t, "enable_switch", {DeviceBackend::kGpio},
                               "a switch is a GPIO line (gpio:gpiochip0:6)");
+  c.status_led_active_low = t.boolean_or("status_led_active_low", c.status_led_active_low);
+  c.enable_switch_active_low = t.boolean_or("enable_switch_active_low", c.enable_switch_active_low);
+  c.switch_debounce_s = t.in_range("switch_debounce_s",
+                                   t.number_or("switch_debounce_s", c.switch_debounce_s), 0.0, 1.0);
+  if (c.status_led && c.enable_switch && c.status_led->name == c.enable_switch->name &&
+      c.status_led->line_offset == c.enable_switch->line_offset) {
+    t.fail("enable_switch", "is the status LED's line");
+  }
   if (!c.whole_robot && !c.base && !c.gps) {
     t.fail("base", "a robot needs its base (can:...) or a GPS (serial:...) to know where it is");
   }

@@ -4,6 +4,10 @@
 # bytes on pseudo-terminals, both at the recorded pace; the daemon (`blockmap run` with a
 # [devices] table) maps from them until SIGINT. Its map must be the map `blockmap replay` makes
 # of the same logs, within the particle filter's own run-to-run spread (GuestSession test).
+# The daemon also holds the PL061's line 5 as its status LED (steady while every device is up)
+# and follows line 3, QEMU's power button, as its mapping-enable switch (active low: released
+# is on); the button is pressed once the logs are played, and the switch's two changes must be
+# in health.jsonl.
 set -e
 blockmap simulate --world usc_block --duration-s 60 --out /tmp/logs 2>/dev/null
 cat > /tmp/robot.toml <<'CONFIG'
@@ -11,6 +15,9 @@ cat > /tmp/robot.toml <<'CONFIG'
 base = "can:vcan0"
 lasers = ["serial:/tmp/dev/laser_horizontal@500000", "serial:/tmp/dev/laser_vertical@500000"]
 gps = "serial:/tmp/dev/gps@9600"
+status_led = "gpio:gpiochip0:5"
+enable_switch = "gpio:gpiochip0:3"
+enable_switch_active_low = true
 [daemon]
 reconnect_first_s = 0.05
 reconnect_max_s = 0.2
@@ -24,13 +31,23 @@ daemon=$!
 sleep 1  # the daemon is up, waiting for the serial lines to appear
 canplayer -I /tmp/logs/rmp.candump vcan0=can0 &
 player=$!
-blockmap play /tmp/logs --pty-dir /tmp/dev 2> /tmp/play.log
+blockmap play /tmp/logs --pty-dir /tmp/dev 2> /tmp/play.log &
+playing=$!
+# Mid-session, every device up: the LED is held by the daemon and lit (the kernel's own view).
+sleep 20
+mount -t debugfs debugfs /sys/kernel/debug
+grep -E "^ *gpio-[0-9]+ +\(.*\|blockmap +\) out hi" /sys/kernel/debug/gpio ||
+  { cat /sys/kernel/debug/gpio; echo "guest_session: the status LED is not lit"; exit 1; }
+wait $playing
 wait $player
-sleep 1
+echo "guest-request: power-button"
+sleep 2
 kill -INT $daemon
 wait $daemon || { cat /tmp/run.log; exit 1; }
-grep -E "^device|^mapped" /tmp/run.log
+grep -E "^device|^mapped|^enable switch|^status LED|^panel" /tmp/run.log
 tail -n 1 /tmp/play.log
+tail -n 1 /tmp/out/health.jsonl | grep -q '"switch_changes":2,' ||
+  { tail -n 1 /tmp/out/health.jsonl; echo "guest_session: the button's press and release are not in health.jsonl"; exit 1; }
 blockmap replay /tmp/logs --out /tmp/replay 2>/dev/null
 BLOCKMAP_GUEST_SESSION=/tmp unit_cli_tests --gtest_brief=1 --gtest_filter='GuestSession.*'
 echo "guest_session: passed"

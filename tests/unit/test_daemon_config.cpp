@@ -28,6 +28,10 @@ spec = "paper_rmp"
 base = "can:can0"
 lasers = ["serial:/dev/ttyUSB0@500000", "serial:/dev/ttyUSB1@38400"]
 gps = "serial:/dev/ttyUSB2@9600"
+status_led = "gpio:gpiochip0:5"
+enable_switch = "gpio:gpiochip0:6"
+enable_switch_active_low = true
+switch_debounce_s = 0.05
 [daemon]
 silent_after_s = 1.5
 reconnect_first_s = 0.1
@@ -47,6 +51,11 @@ scan_queue_messages = 64
   EXPECT_EQ(c.lasers[0]->baud, 500000u);
   EXPECT_EQ(c.lasers[1]->name, "/dev/ttyUSB1");
   EXPECT_EQ(c.gps->baud, 9600u);
+  EXPECT_EQ(c.status_led->line_offset, 5u);
+  EXPECT_EQ(c.enable_switch->name, "gpiochip0");
+  EXPECT_FALSE(c.status_led_active_low);
+  EXPECT_TRUE(c.enable_switch_active_low);
+  EXPECT_DOUBLE_EQ(c.switch_debounce_s, 0.05);
   EXPECT_FALSE(c.whole_robot);
   EXPECT_DOUBLE_EQ(c.silent_after_s, 1.5);
   EXPECT_DOUBLE_EQ(c.reconnect_max_s, 4.0);
@@ -90,6 +99,12 @@ TEST(DaemonConfig, EveryMistakeIsOneLineNamingItsKey) {
       {"[devices]\nbase = \"can:can0\"\ngps = \"gpio:gpiochip0:1\"\n", "devices.gps"},
       {"[devices]\nbase = \"can:can0\"\nstatus_led = \"can:can1\"\n", "devices.status_led"},
       {"[devices]\nbase = \"can:can0\"\nlms_power_up_baud = 4800\n", "devices.lms_power_up_baud"},
+      {"[devices]\nbase = \"can:can0\"\nstatus_led = \"gpio:gpiochip0:5\"\n"
+       "enable_switch = \"gpio:gpiochip0:5\"\n",
+       "devices.enable_switch"},
+      {"[devices]\nbase = \"can:can0\"\nswitch_debounce_s = 2\n", "devices.switch_debounce_s"},
+      {"[devices]\nbase = \"can:can0\"\nstatus_led_active_low = 1\n",
+       "devices.status_led_active_low"},
       {"[devices]\nlasers = [\"serial:/dev/ttyS0@9600\"]\n", "devices.base"},
       {"[devices]\nrobot = \"sim:usc_block\"\nbase = \"can:can0\"\n", "devices.base"},
       {"[devices]\nrobot = \"can:can0\"\n", "devices.robot"},

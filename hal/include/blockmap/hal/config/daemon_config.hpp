@@ -36,6 +36,9 @@ struct DaemonConfig {
   std::optional<DeviceAddress> gps;            // serial:
   std::optional<DeviceAddress> status_led;     // gpio: an output
   std::optional<DeviceAddress> enable_switch;  // gpio: an input; mapping pauses while it is off
+  bool status_led_active_low = false;          // the LED lights when the line is low
+  bool enable_switch_active_low = false;       // a contact to ground with a pull-up: on = low
+  double switch_debounce_s = 0.02;             // the switch is read once still this long
 
   // [daemon]
   double silent_after_s = 2.0;      // a device that sends nothing this long is reopened
