@@ -1,5 +1,6 @@
 #include "blockmap/hal/device_address.hpp"
 
+#include <algorithm>
 #include <array>
 #include <charconv>
 #include <cstdio>
@@ -57,14 +58,32 @@ bool parse_serial(std::string_view rest, DeviceAddress& address, std::string& wh
 }
 
 bool parse_usb(std::string_view rest, DeviceAddress& address, std::string& why) {
+  // VENDOR:PRODUCT, then :SERIAL when two devices share the ids (two TiMs on one robot).
   const std::size_t colon = rest.find(':');
+  const std::size_t serial_colon =
+      colon == std::string_view::npos ? std::string_view::npos : rest.find(':', colon + 1);
   const auto hex16 = [](std::string_view text, std::uint16_t& id) {
     return text.size() == 4 && whole_number(text, id, 16);
   };
+  const std::string_view product =
+      rest.substr(colon + 1, serial_colon == std::string_view::npos ? std::string_view::npos
+                                                                    : serial_colon - colon - 1);
   if (colon == std::string_view::npos || !hex16(rest.substr(0, colon), address.vendor_id) ||
-      !hex16(rest.substr(colon + 1), address.product_id)) {
-    why = "a USB device is its vendor and product id, four hex digits each: usb:19a2:5001";
+      !hex16(product, address.product_id)) {
+    why =
+        "a USB device is its vendor and product id, four hex digits each, and its serial "
+        "number when two share them: usb:19a2:5001 or usb:19a2:5001:18340123";
     return false;
+  }
+  if (serial_colon != std::string_view::npos) {
+    const std::string_view serial = rest.substr(serial_colon + 1);
+    const bool printable =
+        std::all_of(serial.begin(), serial.end(), [](char c) { return c > ' ' && c < 0x7f; });
+    if (serial.empty() || !printable) {
+      why = "a USB serial number is printable characters without spaces: usb:19a2:5001:18340123";
+      return false;
+    }
+    address.name = serial;
   }
   return true;
 }
@@ -156,7 +175,7 @@ std::string to_string(const DeviceAddress& address) {
     case DeviceBackend::kUsb: {
       char ids[16];
       std::snprintf(ids, sizeof ids, "%04x:%04x", address.vendor_id, address.product_id);
-      return text + ids;
+      return text + ids + (address.name.empty() ? "" : ":" + address.name);
     }
     case DeviceBackend::kGpio:
       return text + address.name + ':' + std::to_string(address.line_offset);

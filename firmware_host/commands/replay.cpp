@@ -227,6 +227,7 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
   pipeline::MapperConfig config;
   if (fs::exists(dir / "robot.toml")) {
     robot = hal::sim::load_robot((dir / "robot.toml").string());
+    hal::sim::require_lms2xx_lasers(robot, "the replay of byte logs");
     base_config.rmp.model = robot.base.model;
     base_config.rmp.yaw_sign = robot.base.yaw_sign;
     // A laser the logger did not record (an import from odometry and GPS) is left out.

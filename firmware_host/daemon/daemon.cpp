@@ -307,6 +307,28 @@ class Pipeline {
 
 }  // namespace
 
+namespace {
+
+// A TiM of the robot's spec is on USB, an LMS2xx on a serial line.
+std::string check_laser_protocols(const hal::config::DaemonConfig& config,
+                                  const hal::sim::RobotSpec& robot) {
+  for (std::size_t i = 0; i < config.lasers.size(); ++i) {
+    if (!config.lasers[i]) {
+      continue;
+    }
+    const bool tim = robot.lasers[i].protocol == hal::sim::LaserProtocol::kTim;
+    const bool usb = config.lasers[i]->backend == hal::DeviceBackend::kUsb;
+    if (tim != usb) {
+      return "devices.lasers[" + std::to_string(i) + "]: \"" + hal::to_string(*config.lasers[i]) +
+             "\" for the robot's laser " + robot.lasers[i].name + ", " +
+             (tim ? "a SICK TiM (on usb:VENDOR:PRODUCT)" : "an LMS2xx (on serial:PATH@BAUD)");
+    }
+  }
+  return {};
+}
+
+}  // namespace
+
 class Daemon::Impl {
  public:
   Impl(DaemonOptions options, std::unique_ptr<CanOpener> can, std::unique_ptr<GpioOpener> gpio)
@@ -326,6 +348,9 @@ class Daemon::Impl {
     }
     if (!config.whole_robot) {
       hal::config::check_laser_count(config, robot.lasers.size(), options_.config_source);
+      if (std::string problem = check_laser_protocols(config, robot); !problem.empty()) {
+        return problem;
+      }
       // Lasers without a device are left out of the mapper (their mounts with them).
       std::vector<hal::sim::LaserSpec> attached;
       std::vector<std::optional<hal::DeviceAddress>> addresses;

@@ -8,6 +8,7 @@
 #include "blockmap/hal/devices/gps_receiver.hpp"
 #include "blockmap/hal/devices/laser_scanners.hpp"
 #include "blockmap/hal/devices/segway_base.hpp"
+#include "blockmap/hal/linux/libusb_bulk.hpp"
 #include "blockmap/hal/linux/serial_port.hpp"
 #include "blockmap/hal/linux/socket_can_bus.hpp"
 
@@ -70,11 +71,18 @@ class RobotSource final : public Source {
       if (!config.lasers[i]) {
         continue;
       }
-      hal::devices::Lms2xxScannerConfig laser_config = hal::sim::lms2xx_config_for(robot.lasers[i]);
-      laser_config.line_baud = config.lasers[i]->baud;
-      laser_config.power_up_baud = config.lms_power_up_baud;
-      auto laser =
-          std::make_unique<Laser>(*config.lasers[i], config.scan_queue_messages, laser_config);
+      std::unique_ptr<Laser> laser;
+      if (config.lasers[i]->backend == hal::DeviceBackend::kUsb) {
+        laser = std::make_unique<UsbLaser>(*config.lasers[i], config.scan_queue_messages,
+                                           hal::devices::TimScannerConfig{});
+      } else {
+        hal::devices::Lms2xxScannerConfig laser_config =
+            hal::sim::lms2xx_config_for(robot.lasers[i]);
+        laser_config.line_baud = config.lasers[i]->baud;
+        laser_config.power_up_baud = config.lms_power_up_baud;
+        laser = std::make_unique<SerialLaser>(*config.lasers[i], config.scan_queue_messages,
+                                              laser_config);
+      }
       Laser* l = laser.get();
       inlets.scans.resize(i + 1, nullptr);
       inlets.scans[i] = &l->scans.queue();
@@ -82,11 +90,10 @@ class RobotSource final : public Source {
       lasers_.push_back(std::move(laser));
       add_link(
           l->name,
-          LinkDevice{[l] { return l->open(); }, [l] { l->port.close(); },
-                     [l](TimestampNs timeout) { return l->device.poll(timeout); },
-                     [l] { return l->device.scans_published(); }},
-          [l] { return l->device.scans_rejected(); },
-          [l] { return l->device.decoder().drops().total(); });
+          LinkDevice{[l] { return l->open(); }, [l] { l->close(); },
+                     [l](TimestampNs timeout) { return l->poll(timeout); },
+                     [l] { return l->published(); }},
+          [l] { return l->rejected(); }, [l] { return l->dropped_bytes(); });
     }
     if (config.gps) {
       gps_.emplace(gps_port_, fixes_->queue(), hal::devices::GpsReceiverConfig{});
@@ -157,30 +164,77 @@ class RobotSource final : public Source {
   }
 
  private:
+  // A laser on its port: what its link opens, closes, polls and counts.
   struct Laser {
-    Laser(hal::DeviceAddress address_in, std::size_t queue_messages,
-          const hal::devices::Lms2xxScannerConfig& config)
-        : address(std::move(address_in)),
-          scans(queue_messages),
-          device(port, scans.queue(), config) {}
-    std::string open() {
-      if (std::string problem = port.open(address.name, address.baud); !problem.empty()) {
-        return problem;
+    Laser(hal::DeviceAddress address_in, std::size_t queue_messages)
+        : address(std::move(address_in)), scans(queue_messages) {}
+    Laser(const Laser&) = delete;
+    Laser& operator=(const Laser&) = delete;
+    virtual ~Laser() = default;
+    virtual std::string open() = 0;
+    virtual void close() = 0;
+    virtual IoStatus poll(TimestampNs timeout_ns) = 0;
+    [[nodiscard]] virtual std::uint64_t published() const = 0;
+    [[nodiscard]] virtual std::uint64_t rejected() const = 0;
+    [[nodiscard]] virtual std::uint64_t dropped_bytes() const = 0;
+    // The start command again after every opening: a laser that was power-cycled (or
+    // unplugged) has forgotten its continuous output.
+    std::string started(IoStatus status) {
+      if (status == IoStatus::kOk) {
+        return {};
       }
-      // Continuous output again: a laser that was power-cycled has forgotten it (and its rate,
-      // which the handshake brings back when configured).
-      if (const IoStatus status = device.start(); status != IoStatus::kOk) {
-        port.close();
-        return address.name + ": the laser did not start (" +
-               std::string(blockmap::to_string(status)) + ")";
-      }
-      return {};
+      close();
+      return hal::to_string(address) + ": the laser did not start (" +
+             std::string(blockmap::to_string(status)) + ")";
     }
     hal::DeviceAddress address;
     std::string name;
-    hal::linux_backend::SerialPort port;
     OwnedQueue<msg::LaserScan> scans;
+  };
+
+  // An LMS2xx on a serial line; a configured handshake brings back its rate too.
+  struct SerialLaser final : Laser {
+    SerialLaser(hal::DeviceAddress address_in, std::size_t queue_messages,
+                const hal::devices::Lms2xxScannerConfig& config)
+        : Laser(std::move(address_in), queue_messages), device(port, scans.queue(), config) {}
+    std::string open() override {
+      if (std::string problem = port.open(address.name, address.baud); !problem.empty()) {
+        return problem;
+      }
+      return started(device.start());
+    }
+    void close() override { port.close(); }
+    IoStatus poll(TimestampNs timeout_ns) override { return device.poll(timeout_ns); }
+    [[nodiscard]] std::uint64_t published() const override { return device.scans_published(); }
+    [[nodiscard]] std::uint64_t rejected() const override { return device.scans_rejected(); }
+    [[nodiscard]] std::uint64_t dropped_bytes() const override {
+      return device.decoder().drops().total();
+    }
+    hal::linux_backend::SerialPort port;
     hal::devices::Lms2xxScanner device;
+  };
+
+  // A TiM over USB: found again by its ids after an unplug.
+  struct UsbLaser final : Laser {
+    UsbLaser(hal::DeviceAddress address_in, std::size_t queue_messages,
+             const hal::devices::TimScannerConfig& config)
+        : Laser(std::move(address_in), queue_messages), device(usb, scans.queue(), config) {}
+    std::string open() override {
+      if (std::string problem = usb.open(address.vendor_id, address.product_id, address.name);
+          !problem.empty()) {
+        return problem;
+      }
+      return started(device.start());
+    }
+    void close() override { usb.close(); }
+    IoStatus poll(TimestampNs timeout_ns) override { return device.poll(timeout_ns); }
+    [[nodiscard]] std::uint64_t published() const override { return device.scans_published(); }
+    [[nodiscard]] std::uint64_t rejected() const override { return device.scans_rejected(); }
+    [[nodiscard]] std::uint64_t dropped_bytes() const override {
+      return device.decoder().drops().total();
+    }
+    hal::linux_backend::LibusbBulk usb;
+    hal::devices::TimScanner device;
   };
 
   void add_link(const std::string& name, LinkDevice device, std::function<std::uint64_t()> rejected,

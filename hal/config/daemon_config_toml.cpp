@@ -52,10 +52,20 @@ void read_devices(TableReader& t, DaemonConfig& c) {
     if (!address) {
       t.fail(key, error);
     }
-    if (address->backend != DeviceBackend::kSerial) {
+    if (address->backend != DeviceBackend::kSerial && address->backend != DeviceBackend::kUsb) {
       t.fail(key, "\"" + lasers[i] +
-                      "\": an LMS2xx is on a serial line (serial:/dev/ttyUSB0@500000); a TiM "
-                      "over USB needs the libusb backend, which this build does not have yet");
+                      "\": an LMS2xx is on a serial line (serial:/dev/ttyUSB0@500000), a TiM on "
+                      "USB (usb:19a2:5001)");
+    }
+    for (const std::optional<DeviceAddress>& other : c.lasers) {
+      if (other && other->backend == DeviceBackend::kUsb &&
+          address->backend == DeviceBackend::kUsb && other->vendor_id == address->vendor_id &&
+          other->product_id == address->product_id &&
+          (other->name.empty() || address->name.empty() || other->name == address->name)) {
+        t.fail(key, "\"" + lasers[i] +
+                        "\": two lasers with the same ids are told apart by their serial "
+                        "numbers (usb:19a2:5001:SERIAL)");
+      }
     }
     c.lasers.push_back(address);
   }

@@ -125,8 +125,20 @@ LaserSpec parse_laser(TableReader& table) {
     table.fail("name", "use lower-case letters, digits and '_' (it names the log file)");
   }
   const std::string protocol = table.string_or("protocol", "lms2xx");
+  if (protocol == "tim") {
+    // A TiM over USB: its mount, and its rate for the record (15 Hz for the TiM5xx); its
+    // telegrams say the rest.
+    laser.protocol = LaserProtocol::kTim;
+    laser.mount = parse_mount(table);
+    laser.scan_rate_hz =
+        table.in_range("scan_rate_hz", table.number_or("scan_rate_hz", 15.0), 1.0, 100.0);
+    table.finish();
+    return laser;
+  }
   if (protocol != "lms2xx") {
-    table.fail("protocol", "the simulator has SICK LMS2xx lasers only (\"lms2xx\")");
+    table.fail(
+        "protocol",
+        R"(expected "lms2xx" (a SICK LMS2xx on a serial line) or "tim" (a SICK TiM over USB))");
   }
   laser.mount = parse_mount(table);
   laser.variant = parse_variant(table);
@@ -277,6 +289,16 @@ RobotSpec parse_robot(std::string_view toml_text, std::string_view source_name) 
 std::string robot_text(std::string_view name_or_path, std::string& source) {
   return config::builtin_or_file_text(kBuiltinRobotNames, kBuiltinRobotTexts, name_or_path, "robot",
                                       source);
+}
+
+void require_lms2xx_lasers(const RobotSpec& robot, std::string_view user) {
+  for (const LaserSpec& laser : robot.lasers) {
+    if (laser.protocol != LaserProtocol::kLms2xx) {
+      throw ConfigError("robot " + robot.name + ": laser " + laser.name +
+                        " is a SICK TiM (protocol = \"tim\"): " + std::string(user) +
+                        " has SICK LMS2xx lasers only");
+    }
+  }
 }
 
 RobotSpec load_robot(std::string_view name_or_path) {

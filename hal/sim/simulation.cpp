@@ -63,8 +63,18 @@ struct Simulation::Impl {
   bool finished = false;
 };
 
+namespace {
+
+// The robot, once it is known to have only lasers the simulator can simulate.
+const RobotSpec& simulable(const RobotSpec& robot) {
+  require_lms2xx_lasers(robot, "the simulator");
+  return robot;
+}
+
+}  // namespace
+
 Simulation::Simulation(const World& world, const RobotSpec& robot, const SimOptions& options)
-    : impl_(std::make_unique<Impl>(world, robot, options)) {}
+    : impl_(std::make_unique<Impl>(world, simulable(robot), options)) {}
 
 Simulation::~Simulation() = default;
 

@@ -175,6 +175,67 @@ TEST(Daemon, DevicesThatAreNotThereAreReportedAndRetriedUntilStopped) {
   fs::remove_all(out);
 }
 
+TEST(Daemon, TheModernVariantsTimsAreOpenedOverUsbAndRetriedWhenAbsent) {
+  const fs::path out = scratch("tim");
+  daemon::DaemonOptions options;
+  options.config = hal::config::load_daemon_config(fs::path(BLOCKMAP_PROJECT_DIR) / "config" /
+                                                   "rmp_tim_onboard.toml");
+  options.config.base = hal::DeviceAddress{hal::DeviceBackend::kCan, "can7"};
+  options.config.gps =
+      hal::DeviceAddress{hal::DeviceBackend::kSerial, "/dev/blockmap-no-gps", 9600};
+  options.config.reconnect_first_s = 0.02;
+  options.config.reconnect_max_s = 0.08;
+  options.config_source = "rmp_tim_onboard.toml";
+  options.mapping.out = out.string();
+  daemon::Daemon daemon(options, std::make_unique<AbsentCan>());
+  std::ostringstream err;
+  ASSERT_EQ(daemon.start(err), "");
+  // This machine has no TiM on its bus (the arm64 guest's tests open one, tim_gadget's).
+  EXPECT_NE(err.str().find("device laser_horizontal: connecting (usb:19a2:5001:18340001: "),
+            std::string::npos)
+      << err.str();
+  EXPECT_NE(err.str().find("device laser_vertical: connecting (usb:19a2:5001:18340002: "),
+            std::string::npos)
+      << err.str();
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    daemon.request_stop();
+  });
+  EXPECT_EQ(daemon.run(err), kExitOk) << err.str();
+  stopper.join();
+  fs::remove_all(out);
+}
+
+TEST(Daemon, ALaserOnTheWrongKindOfPortForTheRobotsSpecIsOneLine) {
+  const fs::path config =
+      write_config("tim_on_serial",
+                   "[robot]\nspec = \"rmp_tim\"\n[devices]\nbase = \"can:can0\"\n"
+                   "lasers = [\"serial:/dev/ttyUSB0@500000\"]\n");
+  const testing::CliResult tim = run_cli({"run", "--config", config.string()});
+  EXPECT_NE(tim.status, kExitOk);
+  EXPECT_EQ(tim.err,
+            "blockmap: run: devices.lasers[0]: \"serial:/dev/ttyUSB0@500000\" for the robot's "
+            "laser horizontal, a SICK TiM (on usb:VENDOR:PRODUCT)\n");
+  const fs::path lms =
+      write_config("lms_on_usb", "[devices]\nbase = \"can:can0\"\nlasers = [\"usb:19a2:5001\"]\n");
+  const testing::CliResult on_usb = run_cli({"run", "--config", lms.string()});
+  EXPECT_NE(on_usb.status, kExitOk);
+  EXPECT_NE(on_usb.err.find("for the robot's laser horizontal, an LMS2xx (on serial:PATH@BAUD)"),
+            std::string::npos)
+      << on_usb.err;
+  // The simulator has no TiM: the modern variant is refused there, naming the laser.
+  const testing::CliResult simulated =
+      run_cli({"simulate", "--world", "usc_block", "--robot", "rmp_tim", "--out",
+               scratch("tim_sim").string(), "--duration-s", "1"});
+  EXPECT_NE(simulated.status, kExitOk);
+  EXPECT_NE(simulated.err.find("robot rmp_tim: laser horizontal is a SICK TiM (protocol = "
+                               "\"tim\"): the simulator has SICK LMS2xx lasers only"),
+            std::string::npos)
+      << simulated.err;
+  fs::remove(config);
+  fs::remove(lms);
+}
+
 }  // namespace
 }  // namespace blockmap::cli
 

@@ -92,7 +92,13 @@ TEST(DaemonConfig, EveryMistakeIsOneLineNamingItsKey) {
       {"[devices]\nbase = \"serial:/dev/ttyUSB0@38400\"\n", "devices.base"},
       {"[devices]\nbase = \"can:\"\n", "devices.base"},
       {"[devices]\nbase = \"can:can0\"\nlasers = [\"can:can1\"]\n", "devices.lasers[0]"},
-      {"[devices]\nbase = \"can:can0\"\nlasers = [\"usb:19a2:5001\"]\n", "libusb"},
+      {"[devices]\nbase = \"can:can0\"\nlasers = [\"usb:19a2:5001\", \"usb:19a2:5001\"]\n",
+       "devices.lasers[1]: \"usb:19a2:5001\": two lasers with the same ids are told apart by "
+       "their serial numbers"},
+      {"[devices]\nbase = \"can:can0\"\nlasers = [\"usb:19a2:5001:1\", \"usb:19a2:5001\"]\n",
+       "devices.lasers[1]"},
+      {"[devices]\nbase = \"can:can0\"\nlasers = [\"gpio:gpiochip0:1\"]\n",
+       "a TiM on USB (usb:19a2:5001)"},
       {"[devices]\nbase = \"can:can0\"\nlasers = [\"serial:/dev/ttyS0@12345\"]\n",
        "devices.lasers[0]"},
       {"[devices]\nbase = \"can:can0\"\nlasers = \"serial:/dev/ttyS0@9600\"\n", "devices.lasers"},
@@ -151,6 +157,14 @@ TEST(DaemonConfig, TheShippedOnRobotConfigReads) {
   ASSERT_TRUE(c.gps);
   EXPECT_EQ(c.gps->baud, 9600u);
   EXPECT_EQ(c.lms_power_up_baud, 9600u);
+  // The modern variant: two TiMs on USB, told apart by their serial numbers.
+  const DaemonConfig tim = load_daemon_config(std::filesystem::path(BLOCKMAP_PROJECT_DIR) /
+                                              "config" / "rmp_tim_onboard.toml");
+  EXPECT_EQ(tim.robot, "rmp_tim");
+  ASSERT_EQ(tim.lasers.size(), 2u);
+  EXPECT_EQ(tim.lasers[0]->backend, DeviceBackend::kUsb);
+  EXPECT_EQ(tim.lasers[0]->vendor_id, 0x19a2);
+  EXPECT_EQ(tim.lasers[1]->name, "18340002");
 }
 
 }  // namespace

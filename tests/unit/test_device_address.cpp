@@ -33,6 +33,10 @@ TEST(DeviceAddress, ReadsEveryBackendsForm) {
   EXPECT_EQ(a.backend, DeviceBackend::kUsb);
   EXPECT_EQ(a.vendor_id, 0x19a2);
   EXPECT_EQ(a.product_id, 0x5001);
+  EXPECT_EQ(a.name, "") << "any serial number";
+  a = parsed("usb:19a2:5001:18340123");
+  EXPECT_EQ(a.product_id, 0x5001);
+  EXPECT_EQ(a.name, "18340123");
 
   a = parsed("gpio:gpiochip0:5");
   EXPECT_EQ(a.backend, DeviceBackend::kGpio);
@@ -51,7 +55,7 @@ TEST(DeviceAddress, ReadsEveryBackendsForm) {
 TEST(DeviceAddress, WritesWhatItReads) {
   for (const std::string text :
        {"can:vcan0", "serial:/dev/ttyS1@500000", "usb:19a2:5001", "usb:15d1:0000",
-        "gpio:gpiochip2:17", "sim:benning", "replay:logs"}) {
+        "usb:19a2:5001:A1b2-C3", "gpio:gpiochip2:17", "sim:benning", "replay:logs"}) {
     EXPECT_EQ(to_string(parsed(text)), text);
   }
 }
@@ -69,6 +73,8 @@ TEST(DeviceAddress, EveryMistakeIsOneLineQuotingTheString) {
       {"usb:19a2", "four hex digits each"},
       {"usb:19a2:50011", "four hex digits each"},
       {"usb:19g2:5001", "four hex digits each"},
+      {"usb:19a2:5001:", "serial number is printable characters"},
+      {"usb:19a2:5001:18 34", "serial number is printable characters"},
       {"gpio:gpiochip0", "a chip and a line offset"},
       {"gpio:gpiochip0:-1", "a chip and a line offset"},
       {"gpio::5", "a chip and a line offset"},

@@ -3,6 +3,7 @@
 //   can:can0                     a SocketCAN interface (the Segway RMP)
 //   serial:/dev/ttyUSB0@38400    a termios serial port at its baud rate (LMS2xx, NMEA GPS)
 //   usb:19a2:5001                a USB device by vendor:product, hexadecimal (SICK TiM)
+//   usb:19a2:5001:18340123       ... and its serial number, when two devices share the ids
 //   gpio:gpiochip0:5             a libgpiod chip and line offset (LED, switch, PPS)
 //   sim:usc_block                a simulated world (built-in name or .toml file)
 //   replay:DIR                   a folder of recorded device logs
@@ -21,7 +22,8 @@ enum class DeviceBackend : std::uint8_t { kCan, kSerial, kUsb, kGpio, kSim, kRep
 
 struct DeviceAddress {
   DeviceBackend backend = DeviceBackend::kSim;
-  // The CAN interface, the tty's path, the GPIO chip, the world, or the log folder.
+  // The CAN interface, the tty's path, the USB serial number (empty: any), the GPIO chip, the
+  // world, or the log folder.
   std::string name;
   std::uint32_t baud = 0;         // serial
   std::uint16_t vendor_id = 0;    // usb

@@ -60,8 +60,13 @@ struct BaseSpec {
 inline constexpr double kLms2xxMirrorRateHz = 75.0;
 [[nodiscard]] int mirror_turns_per_scan(protocol::sick_lms2xx::AngularVariant variant) noexcept;
 
+// What a laser speaks: an LMS2xx on a serial line (the paper's, and the simulator's), or a
+// TiM over USB (the modern variant: the daemon only; its telegrams carry their own geometry).
+enum class LaserProtocol : std::uint8_t { kLms2xx, kTim };
+
 struct LaserSpec {
   std::string name;  // log file laser_<name>.bytelog
+  LaserProtocol protocol = LaserProtocol::kLms2xx;
   Mount mount;
   protocol::sick_lms2xx::AngularVariant variant =
       protocol::sick_lms2xx::AngularVariant::k180Deg1Deg;
@@ -110,5 +115,9 @@ struct RobotSpec {
 [[nodiscard]] std::string robot_text(std::string_view name_or_path, std::string& source);
 // robot_text() parsed. Throws ConfigError.
 [[nodiscard]] RobotSpec load_robot(std::string_view name_or_path);
+
+// Throws ConfigError naming the first laser of `robot` that is not an LMS2xx: `user` (the
+// simulator, the replay of byte logs) has LMS2xx lasers only.
+void require_lms2xx_lasers(const RobotSpec& robot, std::string_view user);
 
 }  // namespace blockmap::hal::sim
