@@ -1,7 +1,8 @@
 # Run by scripts/guest-test inside the arm64 guest (a real kernel: SocketCAN with vcan0 up,
-# pseudo-terminals, loopback networking, the PL061 GPIO chip): the HAL's tests, the Linux
-# backends among them, and can-utils' view of the bus the backends use. Any failure fails the
-# run.
+# pseudo-terminals, loopback networking, the PL061 GPIO chip, a USB host and gadget in one
+# kernel): the HAL's tests, the Linux backends among them; the daemon with a TiM on USB that is
+# unplugged and plugged back; and can-utils' view of the bus the backends use. Any failure
+# fails the run.
 set -e
 # A SICK TiM on the guest's own USB bus: tim_gadget serves a FunctionFS function of a gadget
 # with SICK's ids (19a2:5001), bound to dummy_hcd's UDC; the kernel's host side enumerates it
