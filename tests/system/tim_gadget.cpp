@@ -91,8 +91,8 @@ std::vector<std::vector<std::uint8_t>> telegrams_of(const char* path) {
     const cola::Decoder::Step step = reader.push(rest, 0);
     rest = rest.subspan(step.consumed);
     if (step.scan != nullptr) {
-      const std::size_t n =
-          cola::encode_scan(cola::Dialect::kColaA, *step.scan, cola::ScanTelegramFields{}, telegram);
+      const std::size_t n = cola::encode_scan(cola::Dialect::kColaA, *step.scan,
+                                              cola::ScanTelegramFields{}, telegram);
       telegrams.emplace_back(telegram.begin(), telegram.begin() + static_cast<std::ptrdiff_t>(n));
     }
     if (!step.has_event() && rest.empty()) {
