@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <limits>
 #include <optional>
 #include <ostream>
@@ -107,7 +108,10 @@ class Pipeline {
       have_base_ = in.odometry->try_pop(odometry_) && in.imu->try_pop(imu_);
     }
     while (!have_fix_ && in.fixes->try_pop(fix_)) {
-      have_fix_ = fixes_.convert(fix_, last_base_ns_, observation_, up_m_);
+      // The UTC day is the one of the fix's receipt (the base samples before it may not have
+      // been fed yet: the queues are read ahead).
+      const TimestampNs near_ns = fix_.header.stamp_ns != 0 ? fix_.header.stamp_ns : last_base_ns_;
+      have_fix_ = fixes_.convert(fix_, near_ns, observation_, up_m_);
     }
     for (std::size_t i = 0; i < scans_.size(); ++i) {
       if (!have_scan_[i] && in.scans[i] != nullptr) {
@@ -309,6 +313,27 @@ class Pipeline {
 
 namespace {
 
+// The robot of a folder of logs (`replay:DIR`): its robot.toml, as `blockmap replay` reads it,
+// else [robot] spec; the lasers without a log are left out, and said so.
+std::string recorded_robot(const hal::config::DaemonConfig& config, hal::sim::RobotSpec& robot,
+                           std::ostream& err) {
+  const std::filesystem::path dir(config.whole_robot->name);
+  if (!std::filesystem::is_directory(dir)) {
+    return "devices.robot: " + dir.string() + " is not a folder of device logs";
+  }
+  const std::filesystem::path spec = dir / "robot.toml";
+  robot = hal::sim::load_robot(std::filesystem::exists(spec) ? spec.string() : config.robot);
+  hal::sim::require_lms2xx_lasers(robot, "the replay of byte logs");
+  std::erase_if(robot.lasers, [&](const hal::sim::LaserSpec& laser) {
+    const bool recorded = std::filesystem::exists(dir / ("laser_" + laser.name + ".bytelog"));
+    if (!recorded) {
+      err << "replay: no laser_" << laser.name << ".bytelog: mapping without that laser\n";
+    }
+    return !recorded;
+  });
+  return {};
+}
+
 // A TiM of the robot's spec is on USB, an LMS2xx on a serial line.
 std::string check_laser_protocols(const hal::config::DaemonConfig& config,
                                   const hal::sim::RobotSpec& robot) {
@@ -341,10 +366,15 @@ class Daemon::Impl {
 
   std::string start(std::ostream& err) {
     const hal::config::DaemonConfig& config = options_.config;
-    hal::sim::RobotSpec robot = hal::sim::load_robot(config.robot);
-    if (config.whole_robot && config.whole_robot->backend == hal::DeviceBackend::kReplay) {
-      return "devices.robot: a folder of logs is mapped by `blockmap replay " +
-             config.whole_robot->name + "`";
+    const bool replaying =
+        config.whole_robot && config.whole_robot->backend == hal::DeviceBackend::kReplay;
+    hal::sim::RobotSpec robot;
+    if (replaying) {
+      if (std::string problem = recorded_robot(config, robot, err); !problem.empty()) {
+        return problem;
+      }
+    } else {
+      robot = hal::sim::load_robot(config.robot);
     }
     if (!config.whole_robot) {
       hal::config::check_laser_count(config, robot.lasers.size(), options_.config_source);
@@ -365,7 +395,10 @@ class Daemon::Impl {
     }
     pipeline::MapperConfig mapper_config = mapper_config_for(robot, options_.mapping);
     mapper_config.pose_source = pipeline::PoseSource::kLocalizer;
-    if (config.whole_robot) {
+    if (replaying) {
+      source_ = replay_source(config.whole_robot->name, robot, config,
+                              hal::to_string(*config.whole_robot));
+    } else if (config.whole_robot) {
       hal::sim::World world = hal::sim::load_world(config.whole_robot->name);
       if (std::string problem = hal::sim::repeat_laps(world, options_.laps); !problem.empty()) {
         return problem;

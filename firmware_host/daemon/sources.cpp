@@ -1,6 +1,7 @@
 #include "daemon/sources.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <ostream>
 #include <thread>
 #include <utility>
@@ -11,6 +12,7 @@
 #include "blockmap/hal/linux/libusb_bulk.hpp"
 #include "blockmap/hal/linux/serial_port.hpp"
 #include "blockmap/hal/linux/socket_can_bus.hpp"
+#include "commands/recorded_run.hpp"
 
 namespace blockmap::cli::daemon {
 namespace {
@@ -372,7 +374,185 @@ class SimSource final : public Source {
   std::atomic<TimestampNs> watermark_ns_{0};
 };
 
+// ---------------------------------------------------------------------------------------------
+// Recorded logs (`[devices] robot = "replay:DIR"`): the devices' logs read on one thread, each
+// device's messages in its queue in the order they were recorded, as fast as the pipeline
+// takes them (a full queue waits; nothing recorded is dropped).
+class ReplaySource final : public Source {
+ public:
+  ReplaySource(const std::filesystem::path& dir, const hal::sim::RobotSpec& robot,
+               const hal::config::DaemonConfig& config, std::string name)
+      : run_(dir, base_config_of(robot), robot.lasers),
+        name_(std::move(name)),
+        odometry_(config.base_queue_messages),
+        imu_(config.base_queue_messages),
+        fixes_(config.fix_queue_messages) {
+    inlets.odometry = &odometry_.queue();
+    inlets.imu = &imu_.queue();
+    inlets.fixes = &fixes_.queue();
+    scans_.reserve(robot.lasers.size());
+    for (std::size_t i = 0; i < robot.lasers.size(); ++i) {
+      scans_.push_back(std::make_unique<OwnedQueue<msg::LaserScan>>(config.scan_queue_messages));
+      inlets.scans.push_back(&scans_.back()->queue());
+    }
+    published_.resize(robot.lasers.size() + 2);
+    for (auto& count : published_) {
+      count = std::make_unique<std::atomic<std::uint64_t>>(0);
+    }
+    const auto never = [] { return std::uint64_t{0}; };
+    devices.push_back(DeviceView{"base", nullptr, [this] { return published_[0]->load(); }, never,
+                                 [this] { return run_.base().decoder().drops().total(); }});
+    laser_names_.reserve(robot.lasers.size());
+    for (std::size_t i = 0; i < robot.lasers.size(); ++i) {
+      laser_names_.push_back("laser_" + robot.lasers[i].name);
+      devices.push_back(DeviceView{laser_names_.back().c_str(), nullptr,
+                                   [this, i] { return published_[i + 2]->load(); }, never,
+                                   [this, i] { return run_.laser(i).decoder().drops().total(); }});
+    }
+    devices.push_back(DeviceView{"gps", nullptr, [this] { return published_[1]->load(); }, never,
+                                 [this] { return run_.gps().decoder().drops().total(); }});
+  }
+  ~ReplaySource() override { stop(); }
+
+  std::string start(std::ostream& err) override {
+    if (std::string problem = run_.open_error(); !problem.empty()) {
+      return problem;
+    }
+    err << "device " << name_ << ": recorded logs, " << run_.laser_count()
+        << " lasers, as fast as the pipeline takes them\n";
+    thread_ = std::thread([this] { run(); });
+    return {};
+  }
+  void stop() override {
+    stop_.store(true, std::memory_order_release);
+    if (thread_.joinable()) {
+      thread_.join();
+    }
+  }
+  [[nodiscard]] TimestampNs watermark_ns() const override {
+    return finished() ? kEndOfTime : watermark_ns_.load(std::memory_order_acquire);
+  }
+  [[nodiscard]] bool finished() const override { return finished_.load(std::memory_order_acquire); }
+  void report_changes(std::ostream& /*err*/) override {}
+  // A recorded run's clock is UTC, as `blockmap replay` reads it.
+  [[nodiscard]] hal::FixTime fix_time() const override { return hal::FixTime::kUtc; }
+  [[nodiscard]] std::optional<hal::GeodeticPoint> origin() const override { return std::nullopt; }
+  [[nodiscard]] std::size_t queue_bytes() const override {
+    std::size_t bytes = odometry_.bytes() + imu_.bytes() + fixes_.bytes();
+    for (const auto& scans : scans_) {
+      bytes += scans->bytes();
+    }
+    return bytes;
+  }
+
+ private:
+  static hal::devices::SegwayBaseConfig base_config_of(const hal::sim::RobotSpec& robot) {
+    hal::devices::SegwayBaseConfig config;
+    config.rmp.model = robot.base.model;
+    config.rmp.yaw_sign = robot.base.yaw_sign;
+    return config;
+  }
+
+  // Waits for room in `queue` (or stop()); whether `value` went in.
+  template <typename T>
+  bool push(SpscQueueRef<T>& queue, const T& value) {
+    while (!queue.try_push(value)) {
+      if (stop_.load(std::memory_order_acquire)) {
+        return false;
+      }
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+    return true;
+  }
+
+  // The devices' next messages, oldest first, each into its queue; the watermark follows.
+  void run() {
+    msg::OdometrySample odometry;
+    msg::ImuSample imu;
+    msg::GpsFix fix;
+    std::vector<msg::LaserScan> scans(run_.laser_count());
+    bool have_base = run_.next_base(odometry, imu);
+    TimestampNs last_ns = have_base ? odometry.header.stamp_ns : 0;
+    // An NMEA log's bytes carry no receive times: a recorded run's clock is UTC, so a fix is
+    // placed at its own UTC, on the day of the base samples around it (as `blockmap replay`
+    // orders it).
+    const auto next_fix = [&] {
+      const bool more = run_.next_fix(fix);
+      if (more) {
+        fix.header.stamp_ns = fix.has_time ? hal::fix_stamp_ns(fix, last_ns) : last_ns;
+      }
+      return more;
+    };
+    bool have_fix = next_fix();
+    std::vector<bool> have_scan(scans.size());
+    for (std::size_t i = 0; i < scans.size(); ++i) {
+      have_scan[i] = run_.next_scan(i, scans[i]);
+    }
+    while (!stop_.load(std::memory_order_acquire)) {
+      TimestampNs oldest_ns = kEndOfTime;
+      int which = -3;  // -1 base, -2 fix, i >= 0 laser i
+      if (have_base) {
+        oldest_ns = odometry.header.stamp_ns;
+        which = -1;
+      }
+      if (have_fix && fix.header.stamp_ns < oldest_ns) {
+        oldest_ns = fix.header.stamp_ns;
+        which = -2;
+      }
+      for (std::size_t i = 0; i < scans.size(); ++i) {
+        if (have_scan[i] && scans[i].header.stamp_ns < oldest_ns) {
+          oldest_ns = scans[i].header.stamp_ns;
+          which = static_cast<int>(i);
+        }
+      }
+      if (which == -3) {
+        break;  // every log is done
+      }
+      bool pushed = false;
+      if (which == -1) {
+        pushed = push(*inlets.odometry, odometry) && push(*inlets.imu, imu);
+        last_ns = odometry.header.stamp_ns;
+        have_base = run_.next_base(odometry, imu);
+        published_[0]->fetch_add(1, std::memory_order_relaxed);
+      } else if (which == -2) {
+        pushed = push(*inlets.fixes, fix);
+        have_fix = next_fix();
+        published_[1]->fetch_add(1, std::memory_order_relaxed);
+      } else {
+        const auto i = static_cast<std::size_t>(which);
+        pushed = push(*inlets.scans[i], scans[i]);
+        have_scan[i] = run_.next_scan(i, scans[i]);
+        published_[i + 2]->fetch_add(1, std::memory_order_relaxed);
+      }
+      if (!pushed) {
+        break;
+      }
+      watermark_ns_.store(oldest_ns, std::memory_order_release);
+    }
+    finished_.store(true, std::memory_order_release);
+  }
+
+  RecordedRun run_;
+  std::string name_;
+  OwnedQueue<msg::OdometrySample> odometry_;
+  OwnedQueue<msg::ImuSample> imu_;
+  OwnedQueue<msg::GpsFix> fixes_;
+  std::vector<std::unique_ptr<OwnedQueue<msg::LaserScan>>> scans_;
+  std::vector<std::unique_ptr<std::atomic<std::uint64_t>>> published_;  // base, gps, lasers
+  std::vector<std::string> laser_names_;
+  std::thread thread_;
+  std::atomic<bool> stop_{false};
+  std::atomic<bool> finished_{false};
+  std::atomic<TimestampNs> watermark_ns_{0};
+};
+
 }  // namespace
+
+std::unique_ptr<Source> replay_source(const std::filesystem::path& dir,
+                                      const hal::sim::RobotSpec& robot,
+                                      const hal::config::DaemonConfig& config, std::string name) {
+  return std::make_unique<ReplaySource>(dir, robot, config, std::move(name));
+}
 
 std::unique_ptr<CanOpener> socket_can_opener() {
   return std::make_unique<SocketCanOpener>();

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <filesystem>
 #include <functional>
 #include <iosfwd>
 #include <limits>
@@ -98,6 +99,12 @@ class Source {
                                                    const hal::sim::RobotSpec& robot,
                                                    std::unique_ptr<CanOpener> can,
                                                    const hal::Clock& clock);
+// The recorded logs in `dir` (`blockmap replay`'s folder) of `robot`, named `name` in messages
+// ("replay:DIR"): its lasers are the logs' (the caller leaves out those not recorded).
+[[nodiscard]] std::unique_ptr<Source> replay_source(const std::filesystem::path& dir,
+                                                    const hal::sim::RobotSpec& robot,
+                                                    const hal::config::DaemonConfig& config,
+                                                    std::string name);
 // The simulated robot in `world`, named `name` in messages ("sim:usc_block").
 [[nodiscard]] std::unique_ptr<Source> sim_source(const hal::sim::World& world,
                                                  const hal::sim::RobotSpec& robot,

@@ -91,6 +91,54 @@ TEST(Daemon, TheSimulatedRobotThroughTheThreadsMapsWhatTheSingleThreadedRunMaps)
   fs::remove(config);
 }
 
+TEST(Daemon, RecordedLogsThroughTheThreadsMapWhatReplayMaps) {
+  const fs::path logs = scratch("logs");
+  const fs::path threaded = scratch("replay_threaded");
+  const fs::path single = scratch("replay_single");
+  const testing::CliResult recorded =
+      run_cli({"simulate", "--world", "usc_block", "--duration-s", "25", "--out", logs.string()});
+  ASSERT_EQ(recorded.status, kExitOk) << recorded.err;
+  const fs::path config =
+      write_config("replay", "[devices]\nrobot = \"replay:" + logs.string() + "\"\n");
+  const testing::CliResult daemon =
+      run_cli({"run", "--config", config.string(), "--out", threaded.string()});
+  ASSERT_EQ(daemon.status, kExitOk) << daemon.err;
+  EXPECT_NE(daemon.err.find("device replay:" + logs.string() + ": recorded logs, 2 lasers"),
+            std::string::npos)
+      << daemon.err;
+  const testing::CliResult replay = run_cli({"replay", logs.string(), "--out", single.string()});
+  ASSERT_EQ(replay.status, kExitOk) << replay.err;
+  for (const char* file : {"planes.bin", "planes.jsonl", "trajectory.csv", "buildings.json"}) {
+    const std::string a = read_file(threaded / file);
+    EXPECT_FALSE(a.empty()) << file;
+    EXPECT_TRUE(a == read_file(single / file)) << file << " differs";
+  }
+  // Nothing recorded was dropped on the way: every scan in the logs reached the mapper.
+  std::istringstream lines(read_file(threaded / "health.jsonl"));
+  nlohmann::json last;
+  for (std::string line; std::getline(lines, line);) {
+    last = nlohmann::json::parse(line);
+  }
+  int scans = 0;
+  for (const nlohmann::json& device : last["devices"]) {
+    EXPECT_EQ(device["rejected"].get<int>(), 0) << device.dump();
+    if (device["name"].get<std::string>().rfind("laser_", 0) == 0) {
+      scans += device["messages"].get<int>();
+    }
+  }
+  EXPECT_EQ(last["mapper"]["scans"].get<int>(), scans);
+  const fs::path missing = write_config("no_logs", "[devices]\nrobot = \"replay:/nonexistent\"\n");
+  const testing::CliResult none = run_cli({"run", "--config", missing.string()});
+  EXPECT_EQ(none.status, kExitUsage);
+  EXPECT_EQ(none.err,
+            "blockmap: run: devices.robot: /nonexistent is not a folder of device logs\n");
+  fs::remove_all(logs);
+  fs::remove_all(threaded);
+  fs::remove_all(single);
+  fs::remove(config);
+  fs::remove(missing);
+}
+
 TEST(Daemon, ABadConfigIsOneLineAndNothingStarts) {
   const fs::path out = scratch("bad");
   const fs::path config =
