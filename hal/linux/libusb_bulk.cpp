@@ -2,6 +2,9 @@
 
 #include <libusb-1.0/libusb.h>
 
+#include <sys/time.h>
+
+#include <algorithm>
 #include <cstdio>
 
 #include "descriptor_wait.hpp"
@@ -83,7 +86,87 @@ std::string LibusbBulk::open(std::uint16_t vendor_id, std::uint16_t product_id,
            ::libusb_strerror(claimed) + ")";
   }
   interface_ = interface_number;
+  if (!start_in_transfers(error)) {
+    close();
+    return name + ": " + error;
+  }
   return {};
+}
+
+void LibusbBulk::on_in_done(libusb_transfer* transfer) {
+  auto* in = static_cast<InTransfer*>(transfer->user_data);
+  in->done = true;
+  in->in_flight = false;
+  in->stamp_ns = clock_now_ns();
+}
+
+bool LibusbBulk::start_in_transfers(std::string& error) {
+  lost_ = false;
+  oldest_ = 0;
+  for (InTransfer& in : in_) {
+    if (in.transfer == nullptr) {
+      in.transfer = ::libusb_alloc_transfer(0);
+      in.buffer.resize(kInTransferBytes);  // once per object: reopening reuses them
+    }
+    if (in.transfer == nullptr) {
+      error = "libusb cannot allocate a transfer";
+      return false;
+    }
+    ::libusb_fill_bulk_transfer(in.transfer, handle_, in_endpoint_, in.buffer.data(),
+                                static_cast<int>(in.buffer.size()), &LibusbBulk::on_in_done, &in,
+                                0 /* no timeout: the reader's polls bound the waits */);
+    submit(in);
+    if (lost_) {
+      error = "the device went away as its transfers were submitted";
+      return false;
+    }
+  }
+  return true;
+}
+
+void LibusbBulk::submit(InTransfer& in) {
+  in.done = false;
+  in.delivered = 0;
+  const int result = ::libusb_submit_transfer(in.transfer);
+  in.in_flight = result == 0;
+  if (result == LIBUSB_ERROR_NO_DEVICE) {
+    lost_ = true;
+  }
+}
+
+bool LibusbBulk::wait_done(const InTransfer& in, TimestampNs deadline_ns) {
+  while (!in.done) {
+    if (!in.in_flight) {
+      return false;  // never submitted (the device is gone): nothing will complete it
+    }
+    const TimestampNs left_ns = deadline_ns - clock_now_ns();
+    if (left_ns <= 0) {
+      return false;
+    }
+    timeval wait{};
+    wait.tv_sec = static_cast<time_t>(left_ns / kNanosecondsPerSecond);
+    wait.tv_usec = static_cast<suseconds_t>(
+        std::min<TimestampNs>((left_ns % kNanosecondsPerSecond) / 1000 + 1, 999'999));
+    const int result = ::libusb_handle_events_timeout_completed(context_, &wait, nullptr);
+    if (result != 0 && result != LIBUSB_ERROR_INTERRUPTED) {
+      return false;
+    }
+  }
+  return true;
+}
+
+void LibusbBulk::cancel_in_transfers() noexcept {
+  for (InTransfer& in : in_) {
+    if (in.in_flight) {
+      static_cast<void>(::libusb_cancel_transfer(in.transfer));
+    }
+  }
+  // A cancelled transfer is finished only when its callback has run: handle the events until
+  // every one has (a gone device completes them at once; 2 s is far beyond any).
+  const TimestampNs deadline_ns = clock_now_ns() + 2 * kNanosecondsPerSecond;
+  for (const InTransfer& in : in_) {
+    static_cast<void>(wait_done(in, deadline_ns));
+  }
 }
 
 libusb_device_handle* LibusbBulk::open_by_serial(std::uint16_t vendor_id, std::uint16_t product_id,
@@ -162,6 +245,14 @@ bool LibusbBulk::find_bulk_interface(int& interface_number, std::string& error) 
 }
 
 void LibusbBulk::close() noexcept {
+  cancel_in_transfers();
+  for (InTransfer& in : in_) {
+    if (in.transfer != nullptr && !in.in_flight) {
+      ::libusb_free_transfer(in.transfer);
+      in.transfer = nullptr;
+    }
+    // One still in flight after the wait is left allocated rather than freed under libusb.
+  }
   if (handle_ != nullptr) {
     if (interface_ >= 0) {
       static_cast<void>(::libusb_release_interface(handle_, interface_));
@@ -182,23 +273,46 @@ ReadResult LibusbBulk::do_transfer_in(std::span<std::uint8_t> buffer, TimestampN
   if (handle_ == nullptr) {
     return ReadResult{IoStatus::kClosed, 0, 0};
   }
-  int transferred = 0;
-  const int result =
-      ::libusb_bulk_transfer(handle_, in_endpoint_, buffer.data(), static_cast<int>(buffer.size()),
-                             &transferred, timeout_ms(timeout_ns));
-  const TimestampNs stamp_ns = clock_now_ns();
-  // A timeout with bytes in hand delivers them: they are as good as any.
-  if (transferred > 0 && (result == 0 || result == LIBUSB_ERROR_TIMEOUT)) {
-    return ReadResult{IoStatus::kOk, static_cast<std::size_t>(transferred), stamp_ns};
+  if (lost_) {
+    return ReadResult{IoStatus::kDeviceLost, 0, 0};
   }
-  if (result == LIBUSB_ERROR_PIPE) {
-    // A stalled endpoint is cleared, so that the next transfer can run.
-    static_cast<void>(::libusb_clear_halt(handle_, in_endpoint_));
+  InTransfer& in = in_[oldest_];
+  if (!wait_done(in, clock_now_ns() + timeout_ns)) {
+    return ReadResult{lost_ ? IoStatus::kDeviceLost : IoStatus::kTimedOut, 0, 0};
   }
-  if (result == 0) {
-    return ReadResult{IoStatus::kWouldBlock, 0, 0};  // a zero-length packet
+  const auto next = [&] {
+    submit(in);
+    oldest_ = (oldest_ + 1) % kInTransfers;
+  };
+  switch (in.transfer->status) {
+    case LIBUSB_TRANSFER_COMPLETED: {
+      const auto length = static_cast<std::size_t>(in.transfer->actual_length);
+      const std::size_t bytes = std::min(buffer.size(), length - in.delivered);
+      std::copy_n(in.buffer.begin() + static_cast<std::ptrdiff_t>(in.delivered), bytes,
+                  buffer.begin());
+      in.delivered += bytes;
+      const TimestampNs stamp_ns = in.stamp_ns;
+      if (in.delivered == length) {
+        next();  // all of it handed out: back to the device
+      }
+      return bytes > 0 ? ReadResult{IoStatus::kOk, bytes, stamp_ns}
+                       : ReadResult{IoStatus::kWouldBlock, 0, 0};  // a zero-length packet
+    }
+    case LIBUSB_TRANSFER_NO_DEVICE:
+      lost_ = true;
+      return ReadResult{IoStatus::kDeviceLost, 0, 0};
+    case LIBUSB_TRANSFER_STALL:
+      // A stalled endpoint is cleared, so that the next transfers can run.
+      static_cast<void>(::libusb_clear_halt(handle_, in_endpoint_));
+      next();
+      return ReadResult{IoStatus::kIoError, 0, 0};
+    case LIBUSB_TRANSFER_OVERFLOW:
+      next();
+      return ReadResult{IoStatus::kOverflow, 0, 0};
+    default:  // an error, a timeout or a cancellation
+      next();
+      return ReadResult{lost_ ? IoStatus::kDeviceLost : IoStatus::kIoError, 0, 0};
   }
-  return ReadResult{status_of(result), 0, 0};
 }
 
 WriteResult LibusbBulk::do_transfer_out(std::span<const std::uint8_t> bytes,
