@@ -59,7 +59,10 @@ class Pipeline {
   void set_health_file(std::FILE* file) noexcept { health_ = file; }
   void set_snapshots(SnapshotWriter* snapshots) noexcept { snapshots_ = snapshots; }
   void set_output_thread(OutputThread* output) noexcept { output_ = output; }
-  void set_panel(const Panel* panel) noexcept { panel_ = panel; }
+  void set_panel(Panel* panel) noexcept {
+    panel_ = panel;
+    pps_ = panel->pps_edges();
+  }
 
   // A snapshot of the map now, written at once (once the pipeline thread has ended); the last
   // one stays when this one cannot be written.
@@ -106,6 +109,11 @@ class Pipeline {
     if (!have_base_ && in.imu->size_approx() > 0) {
       // The base publishes odometry, then IMU: with an IMU sample there, its odometry is too.
       have_base_ = in.odometry->try_pop(odometry_) && in.imu->try_pop(imu_);
+    }
+    if (pps_ != nullptr) {
+      for (TimestampNs edge_ns = 0; pps_->try_pop(edge_ns);) {
+        fixes_.on_pps(edge_ns);
+      }
     }
     while (!have_fix_ && in.fixes->try_pop(fix_)) {
       // The UTC day is the one of the fix's receipt (the base samples before it may not have
@@ -272,13 +280,15 @@ class Pipeline {
         static_cast<unsigned long long>(output_ != nullptr ? output_->snapshot_failures() : 0),
         static_cast<unsigned long long>(snapshots_skipped_),
         static_cast<unsigned long long>(output_ != nullptr ? output_->waits() : 0));
-    std::fprintf(
-        health_,
-        "\"mapping_enabled\":%s,\"scans_paused\":%llu,\"switch_changes\":%llu,"
-        "\"switch_failures\":%llu}\n",
-        mapping_enabled() ? "true" : "false", static_cast<unsigned long long>(scans_paused_),
-        static_cast<unsigned long long>(panel_ != nullptr ? panel_->switch_changes() : 0),
-        static_cast<unsigned long long>(panel_ != nullptr ? panel_->switch_failures() : 0));
+    std::fprintf(health_,
+                 "\"mapping_enabled\":%s,\"scans_paused\":%llu,\"switch_changes\":%llu,"
+                 "\"switch_failures\":%llu,\"pps_edges\":%llu,\"pps_fixes\":%zu}\n",
+                 mapping_enabled() ? "true" : "false",
+                 static_cast<unsigned long long>(scans_paused_),
+                 static_cast<unsigned long long>(panel_ != nullptr ? panel_->switch_changes() : 0),
+                 static_cast<unsigned long long>(panel_ != nullptr ? panel_->switch_failures() : 0),
+                 static_cast<unsigned long long>(panel_ != nullptr ? panel_->pps_edges_seen() : 0),
+                 fixes_.pps_fixes());
     std::fflush(health_);
   }
 
@@ -305,6 +315,7 @@ class Pipeline {
   SnapshotWriter* snapshots_ = nullptr;
   OutputThread* output_ = nullptr;
   const Panel* panel_ = nullptr;
+  SpscQueueRef<TimestampNs>* pps_ = nullptr;  // the GPS's PPS edges, when wired
   std::uint64_t snapshots_skipped_ = 0;
   std::uint64_t scans_paused_ = 0;
 };

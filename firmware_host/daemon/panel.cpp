@@ -106,7 +106,31 @@ std::string Panel::start(const hal::config::DaemonConfig& config, std::ostream& 
         << (enabled ? "on, mapping" : "off, mapping paused until it is switched on") << '\n';
     thread_ = std::thread([this] { follow_switch(); });
   }
+  if (config.gps_pps) {
+    std::string error;
+    pps_ =
+        opener_->open(*config.gps_pps, GpioUse::kInputWithEdges, config.gps_pps_active_low, error);
+    if (pps_ == nullptr) {
+      return "devices.gps_pps: " + error;
+    }
+    err << "GPS PPS " << hal::to_string(*config.gps_pps)
+        << ": up (fixes are placed on its edges)\n";
+    pps_thread_ = std::thread([this] { follow_pps(); });
+  }
   return {};
+}
+
+void Panel::follow_pps() {
+  while (!stop_.load(std::memory_order_acquire)) {
+    const hal::GpioEdge edge = pps_->wait_edge(kSwitchWaitNs);
+    if (edge.status == IoStatus::kOk && edge.rising) {
+      pps_seen_.fetch_add(1, std::memory_order_relaxed);
+      static_cast<void>(pps_queue_.try_push(edge.stamp_ns));
+    } else if (edge.status != IoStatus::kOk && edge.status != IoStatus::kTimedOut &&
+               edge.status != IoStatus::kWouldBlock) {
+      std::this_thread::sleep_for(std::chrono::nanoseconds(kSwitchWaitNs));  // not spun
+    }
+  }
 }
 
 void Panel::follow_switch() {
@@ -164,6 +188,9 @@ void Panel::stop() {
   stop_.store(true, std::memory_order_release);
   if (thread_.joinable()) {
     thread_.join();
+  }
+  if (pps_thread_.joinable()) {
+    pps_thread_.join();
   }
   if (led_ != nullptr) {
     led_known_ = false;

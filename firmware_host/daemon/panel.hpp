@@ -1,4 +1,6 @@
-// The robot's panel (issue 9): a status LED and a mapping-enable switch on GPIO lines.
+// The robot's panel (issue 9): a status LED and a mapping-enable switch on GPIO lines, and
+// the GPS receiver's pulse-per-second line, whose edges put the fixes on the robot's clock
+// exactly (hal::FixConverter::on_pps).
 //
 // The LED says how the daemon is at a glance, from across a car park:
 //   steady on     mapping, every device up
@@ -11,6 +13,7 @@
 // bouncing contact makes one change, not a dozen.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <iosfwd>
@@ -18,6 +21,7 @@
 #include <string>
 #include <thread>
 
+#include "blockmap/core/spsc_queue.hpp"
 #include "blockmap/hal/config/daemon_config.hpp"
 #include "blockmap/hal/device_address.hpp"
 #include "blockmap/hal/gpio_line.hpp"
@@ -65,6 +69,17 @@ class Panel {
   // Ends the switch's thread and leaves the LED off.
   void stop();
 
+  // The PPS line's rising edges, stamped by the kernel, for the pipeline thread (none without
+  // a gps_pps line). The pipeline takes them every few milliseconds; full (a pipeline stalled
+  // for 8 s), new edges are dropped until it drains, and the fixes fall back on the least
+  // delay meanwhile.
+  [[nodiscard]] SpscQueueRef<TimestampNs>* pps_edges() noexcept {
+    return pps_ != nullptr ? &pps_queue_ : nullptr;
+  }
+  [[nodiscard]] std::uint64_t pps_edges_seen() const noexcept {
+    return pps_seen_.load(std::memory_order_relaxed);
+  }
+
   // True without a switch. Read by the pipeline thread.
   [[nodiscard]] const std::atomic<bool>& mapping_enabled() const noexcept {
     return mapping_enabled_;
@@ -81,6 +96,7 @@ class Panel {
 
  private:
   void follow_switch();
+  void follow_pps();
 
   std::unique_ptr<GpioOpener> opener_;
   std::unique_ptr<hal::GpioLine> led_;
@@ -94,6 +110,11 @@ class Panel {
   std::uint64_t changes_reported_ = 0;
   std::atomic<bool> stop_{false};
   std::thread thread_;
+  std::unique_ptr<hal::GpioLine> pps_;
+  std::array<TimestampNs, 9> pps_slots_{};  // 8 edges: 8 s of pulses
+  SpscQueueRef<TimestampNs> pps_queue_{pps_slots_};
+  std::atomic<std::uint64_t> pps_seen_{0};
+  std::thread pps_thread_;
 };
 
 }  // namespace blockmap::cli::daemon

@@ -83,13 +83,22 @@ void read_devices(TableReader& t, DaemonConfig& c) {
                            "an LED is a GPIO line (gpio:gpiochip0:5)");
   c.enable_switch = device_at(t, "enable_switch", {DeviceBackend::kGpio},
                               "a switch is a GPIO line (gpio:gpiochip0:6)");
+  c.gps_pps = device_at(t, "gps_pps", {DeviceBackend::kGpio},
+                        "a PPS output is a GPIO line (gpio:gpiochip0:4)");
+  c.gps_pps_active_low = t.boolean_or("gps_pps_active_low", c.gps_pps_active_low);
   c.status_led_active_low = t.boolean_or("status_led_active_low", c.status_led_active_low);
   c.enable_switch_active_low = t.boolean_or("enable_switch_active_low", c.enable_switch_active_low);
   c.switch_debounce_s = t.in_range("switch_debounce_s",
                                    t.number_or("switch_debounce_s", c.switch_debounce_s), 0.0, 1.0);
-  if (c.status_led && c.enable_switch && c.status_led->name == c.enable_switch->name &&
-      c.status_led->line_offset == c.enable_switch->line_offset) {
+  const auto same_line = [](const std::optional<DeviceAddress>& a,
+                            const std::optional<DeviceAddress>& b) {
+    return a && b && a->name == b->name && a->line_offset == b->line_offset;
+  };
+  if (same_line(c.status_led, c.enable_switch)) {
     t.fail("enable_switch", "is the status LED's line");
+  }
+  if (same_line(c.gps_pps, c.status_led) || same_line(c.gps_pps, c.enable_switch)) {
+    t.fail("gps_pps", "is the status LED's or the enable switch's line");
   }
   if (!c.whole_robot && !c.base && !c.gps) {
     t.fail("base", "a robot needs its base (can:...) or a GPS (serial:...) to know where it is");

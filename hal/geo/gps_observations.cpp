@@ -74,7 +74,33 @@ TimestampNs FixConverter::on_receive_clock(const msg::GpsFix& fix) {
   for (std::size_t i = 1; i < kept; ++i) {
     best_delay_ns_ = std::min(best_delay_ns_, delays_ns_[i]);
   }
-  return utc_ns + best_delay_ns_;
+  return on_pps_edge(utc_ns, utc_ns + best_delay_ns_, received_ns);
+}
+
+void FixConverter::on_pps(TimestampNs edge_ns) noexcept {
+  pps_edges_ns_[pps_count_ % kPpsEdges] = edge_ns;
+  ++pps_count_;
+}
+
+TimestampNs FixConverter::on_pps_edge(TimestampNs utc_ns, TimestampNs estimate_ns,
+                                      TimestampNs received_ns) {
+  const TimestampNs into_second_ns = utc_ns % kNanosecondsPerSecond;
+  const std::size_t kept = pps_count_ < kPpsEdges ? pps_count_ : kPpsEdges;
+  TimestampNs best_ns = estimate_ns;
+  TimestampNs best_gap_ns = kPpsAgreementNs;
+  for (std::size_t i = 0; i < kept; ++i) {
+    const TimestampNs candidate_ns = pps_edges_ns_[i] + into_second_ns;
+    const TimestampNs gap_ns =
+        candidate_ns > estimate_ns ? candidate_ns - estimate_ns : estimate_ns - candidate_ns;
+    if (gap_ns < best_gap_ns && candidate_ns <= received_ns) {
+      best_ns = candidate_ns;
+      best_gap_ns = gap_ns;
+    }
+  }
+  if (best_gap_ns < kPpsAgreementNs) {
+    ++pps_fixes_;
+  }
+  return best_ns;
 }
 
 }  // namespace blockmap::hal

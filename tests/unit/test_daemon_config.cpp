@@ -32,6 +32,7 @@ status_led = "gpio:gpiochip0:5"
 enable_switch = "gpio:gpiochip0:6"
 enable_switch_active_low = true
 switch_debounce_s = 0.05
+gps_pps = "gpio:gpiochip0:4"
 [daemon]
 silent_after_s = 1.5
 reconnect_first_s = 0.1
@@ -56,6 +57,8 @@ scan_queue_messages = 64
   EXPECT_FALSE(c.status_led_active_low);
   EXPECT_TRUE(c.enable_switch_active_low);
   EXPECT_DOUBLE_EQ(c.switch_debounce_s, 0.05);
+  EXPECT_EQ(c.gps_pps->line_offset, 4u);
+  EXPECT_FALSE(c.gps_pps_active_low);
   EXPECT_FALSE(c.whole_robot);
   EXPECT_DOUBLE_EQ(c.silent_after_s, 1.5);
   EXPECT_DOUBLE_EQ(c.reconnect_max_s, 4.0);
@@ -109,6 +112,10 @@ TEST(DaemonConfig, EveryMistakeIsOneLineNamingItsKey) {
        "enable_switch = \"gpio:gpiochip0:5\"\n",
        "devices.enable_switch"},
       {"[devices]\nbase = \"can:can0\"\nswitch_debounce_s = 2\n", "devices.switch_debounce_s"},
+      {"[devices]\nbase = \"can:can0\"\ngps_pps = \"serial:/dev/pps0@9600\"\n", "devices.gps_pps"},
+      {"[devices]\nbase = \"can:can0\"\nstatus_led = \"gpio:gpiochip0:4\"\n"
+       "gps_pps = \"gpio:gpiochip0:4\"\n",
+       "devices.gps_pps: is the status LED's or the enable switch's line"},
       {"[devices]\nbase = \"can:can0\"\nstatus_led_active_low = 1\n",
        "devices.status_led_active_low"},
       {"[devices]\nlasers = [\"serial:/dev/ttyS0@9600\"]\n", "devices.base"},

@@ -63,3 +63,72 @@ TEST(GpsReceiveClock, MidnightKeepsTheClockAndAJumpStartsItOver) {
 
 }  // namespace
 }  // namespace blockmap::hal
+
+namespace blockmap::hal {
+namespace {
+
+// A 4 Hz receiver whose sentences take 60-400 ms to arrive, and its PPS line: an edge at the
+// start of every UTC second, stamped by the kernel on the robot's clock.
+struct PpsRun {
+  static constexpr TimestampNs kBootOffsetNs = 5'000'000 * kMs - 43'200'000 * kMs;
+  std::uint32_t random = 12345;
+  TimestampNs delay_ns() {
+    random = random * 1'103'515'245U + 12'345U;
+    return (60 + static_cast<TimestampNs>((random >> 8) % 341)) * kMs;
+  }
+  static TimestampNs edge_ns(int second) {
+    return kBootOffsetNs + (43'200'000 + static_cast<TimestampNs>(second) * 1000) * kMs;
+  }
+};
+
+TEST(GpsReceiveClock, PpsEdgesPutEachFixExactlyOnItsSecond) {
+  FixConverter with_pps(FixTime::kReceiveClock);
+  FixConverter without(FixTime::kReceiveClock);
+  PpsRun run;
+  localize::GpsObservation a;
+  localize::GpsObservation b;
+  double up_m = 0.0;
+  TimestampNs worst_without_ns = 0;
+  for (int second = 0; second < 20; ++second) {
+    with_pps.on_pps(PpsRun::edge_ns(second));
+    if (second == 7) {
+      with_pps.on_pps(PpsRun::edge_ns(second) + 480 * kMs);  // a glitch on the line
+    }
+    for (int quarter = 0; quarter < 4; ++quarter) {
+      const std::int32_t utc_ms = 43'200'000 + second * 1000 + quarter * 250;
+      const TimestampNs measured = PpsRun::kBootOffsetNs + utc_ms * kMs;
+      const msg::GpsFix fix = fix_at(utc_ms, measured + run.delay_ns());
+      ASSERT_TRUE(with_pps.convert(fix, 0, a, up_m));
+      ASSERT_TRUE(without.convert(fix, 0, b, up_m));
+      EXPECT_EQ(a.stamp_ns, measured) << "second " << second << " quarter " << quarter;
+      worst_without_ns = std::max(worst_without_ns, b.stamp_ns - measured);
+    }
+  }
+  EXPECT_EQ(with_pps.pps_fixes(), 80u);
+  // Without the pulse the fixes are late by the line's least latency (at least 60 ms here).
+  EXPECT_GE(worst_without_ns, 60 * kMs);
+}
+
+TEST(GpsReceiveClock, WithoutPulsesTheFixesFallBackOnTheLeastDelay) {
+  FixConverter converter(FixTime::kReceiveClock);
+  PpsRun run;
+  localize::GpsObservation observation;
+  double up_m = 0.0;
+  for (int second = 0; second < 12; ++second) {
+    if (second < 4) {
+      converter.on_pps(PpsRun::edge_ns(second));  // then the PPS wire comes off
+    }
+    const std::int32_t utc_ms = 43'200'000 + second * 1000;
+    const TimestampNs measured = PpsRun::kBootOffsetNs + utc_ms * kMs;
+    ASSERT_TRUE(converter.convert(fix_at(utc_ms, measured + run.delay_ns()), 0, observation, up_m));
+    if (second >= 5) {
+      // The old edges are whole seconds away from the estimate: not used.
+      EXPECT_EQ(observation.stamp_ns,
+                measured + converter.receive_delay_ns() - PpsRun::kBootOffsetNs);
+    }
+  }
+  EXPECT_EQ(converter.pps_fixes(), 4u);
+}
+
+}  // namespace
+}  // namespace blockmap::hal

@@ -107,11 +107,18 @@ class FakeOpener final : public GpioOpener {
       return nullptr;
     }
     auto line = std::make_unique<FakeLine>(use == GpioUse::kOutput ? false : switch_level_);
-    (use == GpioUse::kOutput ? led : switch_line) = line.get();
+    if (use == GpioUse::kOutput) {
+      led = line.get();
+    } else if (address.line_offset == 4) {
+      pps = line.get();
+    } else {
+      switch_line = line.get();
+    }
     return line;
   }
   FakeLine* led = nullptr;
   FakeLine* switch_line = nullptr;
+  FakeLine* pps = nullptr;
 
  private:
   bool switch_level_;
@@ -212,6 +219,32 @@ TEST(Panel, ALineThatIsNotThereIsOneLineNamingTheKey) {
   Panel none(std::make_unique<FakeOpener>(true));
   EXPECT_EQ(none.start(hal::config::DaemonConfig{}, err), "");
   EXPECT_TRUE(none.mapping_enabled().load());
+}
+
+TEST(Panel, ThePpsLinesRisingEdgesReachThePipelineWithTheirStamps) {
+  hal::config::DaemonConfig config;
+  config.gps_pps = hal::DeviceAddress{hal::DeviceBackend::kGpio, "gpiochip0", 0, 0, 0, 4};
+  auto opener = std::make_unique<FakeOpener>(false);
+  FakeOpener& lines = *opener;
+  Panel panel(std::move(opener));
+  EXPECT_EQ(panel.pps_edges(), nullptr) << "not before it is opened";
+  std::ostringstream err;
+  ASSERT_EQ(panel.start(config, err), "");
+  EXPECT_NE(err.str().find("GPS PPS gpio:gpiochip0:4: up"), std::string::npos) << err.str();
+  ASSERT_NE(panel.pps_edges(), nullptr);
+  // Three pulses: up at the second, down 100 ms later (the fake stamps its edges 1, 2, 3 ...).
+  for (int pulse = 0; pulse < 3; ++pulse) {
+    lines.pps->drive(true);
+    lines.pps->drive(false);
+  }
+  ASSERT_TRUE(eventually([&] { return panel.pps_edges_seen() == 3; }));
+  std::vector<TimestampNs> stamps;
+  for (TimestampNs stamp = 0; panel.pps_edges()->try_pop(stamp);) {
+    stamps.push_back(stamp);
+  }
+  EXPECT_EQ(stamps, (std::vector<TimestampNs>{1, 3, 5})) << "the rising edges only";
+  EXPECT_TRUE(panel.mapping_enabled().load()) << "a PPS line is not a switch";
+  panel.stop();
 }
 
 fs::path scratch(const std::string& name) {

@@ -53,9 +53,23 @@ class FixConverter {
   // kReceiveClock: how often the delays started over (the receiver's clock jumped).
   [[nodiscard]] std::size_t clock_restarts() const noexcept { return clock_restarts_; }
 
+  // kReceiveClock: the receiver's pulse-per-second, an edge at the start of each UTC second,
+  // stamped on the receive clock by the kernel (a GPIO interrupt). A fix then lands on the
+  // edge of its second plus its fraction: exact, where the least delay is late by the serial
+  // line's least latency. The edge is the one that puts the fix within kPpsAgreementNs of the
+  // least-delay estimate (which settles whose second an edge starts) and not after its receipt;
+  // without one (no PPS wired, pulses lost) the estimate stands.
+  static constexpr std::size_t kPpsEdges = 4;
+  static constexpr TimestampNs kPpsAgreementNs = 400'000'000;
+  void on_pps(TimestampNs edge_ns) noexcept;
+  [[nodiscard]] std::size_t pps_fixes() const noexcept { return pps_fixes_; }
+
  private:
   // The fix's stamp on the receive clock, learning the delay (kReceiveClock).
   [[nodiscard]] TimestampNs on_receive_clock(const msg::GpsFix& fix);
+  // `estimate_ns` moved onto a PPS edge when one agrees (see on_pps).
+  [[nodiscard]] TimestampNs on_pps_edge(TimestampNs utc_ns, TimestampNs estimate_ns,
+                                        TimestampNs received_ns);
 
   std::optional<LocalEnuFrame> frame_;
   FixTime time_ = FixTime::kUtc;
@@ -64,6 +78,9 @@ class FixConverter {
   std::size_t delay_count_ = 0;  // delays seen since the last restart
   TimestampNs best_delay_ns_ = 0;
   std::size_t clock_restarts_ = 0;
+  std::array<TimestampNs, kPpsEdges> pps_edges_ns_{};
+  std::size_t pps_count_ = 0;
+  std::size_t pps_fixes_ = 0;
 };
 
 }  // namespace blockmap::hal

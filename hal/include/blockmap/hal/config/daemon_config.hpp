@@ -39,6 +39,10 @@ struct DaemonConfig {
   bool status_led_active_low = false;          // the LED lights when the line is low
   bool enable_switch_active_low = false;       // a contact to ground with a pull-up: on = low
   double switch_debounce_s = 0.02;             // the switch is read once still this long
+  // gpio: the GPS receiver's pulse-per-second (rising at each UTC second): fixes are placed on
+  // its edges (hal::FixConverter::on_pps).
+  std::optional<DeviceAddress> gps_pps;
+  bool gps_pps_active_low = false;
 
   // [daemon]
   double silent_after_s = 2.0;      // a device that sends nothing this long is reopened
