@@ -36,12 +36,13 @@ inline std::vector<Wall> walls_of(const std::filesystem::path& planes_json,
   return walls;
 }
 
-// Whether `wall` is among `walls` within 8 deg and 3 m (either side of the plane).
-inline bool within_spread(const Wall& wall, const std::vector<Wall>& walls) {
+// Whether `wall` is among `walls` within `max_angle_deg` and 3 m (either side of the plane).
+inline bool within_spread(const Wall& wall, const std::vector<Wall>& walls,
+                          double max_angle_deg = 8.0) {
   return std::any_of(walls.begin(), walls.end(), [&](const Wall& other) {
     const double cos_angle = wall.normal.dot(other.normal);
     const double sign = cos_angle < 0.0 ? -1.0 : 1.0;
-    return std::abs(cos_angle) > std::cos(8.0 * std::numbers::pi / 180.0) &&
+    return std::abs(cos_angle) > std::cos(max_angle_deg * std::numbers::pi / 180.0) &&
            std::abs(wall.d - sign * other.d) < 3.0;
   });
 }

