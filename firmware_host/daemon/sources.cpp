@@ -277,9 +277,48 @@ class RobotSource final : public Source {
 };
 
 // ---------------------------------------------------------------------------------------------
+// A source whose messages one thread of its own publishes, faster than real time, on the run's
+// UTC clock (the simulated robot, recorded logs): the thread, its stop request, its watermark.
+class OwnThreadSource : public Source {
+ public:
+  ~OwnThreadSource() override { stop(); }
+  void stop() override {
+    stop_.store(true, std::memory_order_release);
+    if (thread_.joinable()) {
+      thread_.join();
+    }
+  }
+  [[nodiscard]] TimestampNs watermark_ns() const override {
+    return finished() ? kEndOfTime : watermark_ns_.load(std::memory_order_acquire);
+  }
+  [[nodiscard]] bool finished() const override { return finished_.load(std::memory_order_acquire); }
+  void report_changes(std::ostream& /*err*/) override {}
+  // The simulation's clock and a recorded run's are UTC (the world's start_utc, the log's).
+  [[nodiscard]] hal::FixTime fix_time() const override { return hal::FixTime::kUtc; }
+
+ protected:
+  // Runs `body` on the thread; it publishes, then calls finish().
+  template <typename Body>
+  void launch(Body body) {
+    thread_ = std::thread(std::move(body));
+  }
+  [[nodiscard]] bool stopping() const noexcept { return stop_.load(std::memory_order_acquire); }
+  void publish_watermark(TimestampNs stamp_ns) noexcept {
+    watermark_ns_.store(stamp_ns, std::memory_order_release);
+  }
+  void finish() noexcept { finished_.store(true, std::memory_order_release); }
+
+ private:
+  std::thread thread_;
+  std::atomic<bool> stop_{false};
+  std::atomic<bool> finished_{false};
+  std::atomic<TimestampNs> watermark_ns_{0};
+};
+
+// ---------------------------------------------------------------------------------------------
 // The simulated robot (`[devices] robot = "sim:WORLD"`): its simulation and devices on one
 // thread, as fast as the pipeline takes their messages.
-class SimSource final : public Source {
+class SimSource final : public OwnThreadSource {
  public:
   SimSource(const hal::sim::World& world, const hal::sim::RobotSpec& robot,
             const hal::sim::SimOptions& options, std::string name)
@@ -306,7 +345,7 @@ class SimSource final : public Source {
                                  [r] { return r->gps().fixes_rejected(); },
                                  [r] { return r->gps().decoder().drops().total(); }});
   }
-  ~SimSource() override { stop(); }
+  ~SimSource() override { stop(); }  // before the robot the thread runs goes
 
   std::string start(std::ostream& err) override {
     if (robot_->start() != IoStatus::kOk) {
@@ -314,23 +353,10 @@ class SimSource final : public Source {
     }
     err << "device " << name_ << ": the simulated robot, " << robot_->laser_count()
         << " lasers, faster than real time\n";
-    watermark_ns_.store(robot_->simulation().now_ns(), std::memory_order_release);
-    thread_ = std::thread([this] { run(); });
+    publish_watermark(robot_->simulation().now_ns());
+    launch([this] { run(); });
     return {};
   }
-  void stop() override {
-    stop_.store(true, std::memory_order_release);
-    if (thread_.joinable()) {
-      thread_.join();
-    }
-  }
-  [[nodiscard]] TimestampNs watermark_ns() const override {
-    return finished() ? kEndOfTime : watermark_ns_.load(std::memory_order_acquire);
-  }
-  [[nodiscard]] bool finished() const override { return finished_.load(std::memory_order_acquire); }
-  void report_changes(std::ostream& /*err*/) override {}
-  // The simulation's clock is UTC (the world's start_utc), as a recorded log's is.
-  [[nodiscard]] hal::FixTime fix_time() const override { return hal::FixTime::kUtc; }
   [[nodiscard]] std::size_t queue_bytes() const override { return 0; }  // the robot's own
   [[nodiscard]] double elapsed_s() const { return robot_->simulation().elapsed_s(); }
   // The world's site, as `blockmap run` and `simulate` anchor it.
@@ -354,31 +380,27 @@ class SimSource final : public Source {
   }
   void run() {
     bool more = true;
-    while (more && !stop_.load(std::memory_order_acquire)) {
+    while (more && !stopping()) {
       if (!room()) {
         std::this_thread::yield();
         continue;
       }
       more = robot_->advance();
-      watermark_ns_.store(robot_->simulation().now_ns(), std::memory_order_release);
+      publish_watermark(robot_->simulation().now_ns());
     }
-    finished_.store(true, std::memory_order_release);
+    finish();
   }
 
   std::unique_ptr<hal::sim::SimulatedRobot> robot_;
   std::string name_;
   std::vector<std::string> laser_names_;
-  std::thread thread_;
-  std::atomic<bool> stop_{false};
-  std::atomic<bool> finished_{false};
-  std::atomic<TimestampNs> watermark_ns_{0};
 };
 
 // ---------------------------------------------------------------------------------------------
 // Recorded logs (`[devices] robot = "replay:DIR"`): the devices' logs read on one thread, each
 // device's messages in its queue in the order they were recorded, as fast as the pipeline
 // takes them (a full queue waits; nothing recorded is dropped).
-class ReplaySource final : public Source {
+class ReplaySource final : public OwnThreadSource {
  public:
   ReplaySource(const std::filesystem::path& dir, const hal::sim::RobotSpec& robot,
                const hal::config::DaemonConfig& config, std::string name)
@@ -412,7 +434,7 @@ class ReplaySource final : public Source {
     devices.push_back(DeviceView{"gps", nullptr, [this] { return published_[1]->load(); }, never,
                                  [this] { return run_.gps().decoder().drops().total(); }});
   }
-  ~ReplaySource() override { stop(); }
+  ~ReplaySource() override { stop(); }  // before the logs the thread reads go
 
   std::string start(std::ostream& err) override {
     if (std::string problem = run_.open_error(); !problem.empty()) {
@@ -420,22 +442,9 @@ class ReplaySource final : public Source {
     }
     err << "device " << name_ << ": recorded logs, " << run_.laser_count()
         << " lasers, as fast as the pipeline takes them\n";
-    thread_ = std::thread([this] { run(); });
+    launch([this] { run(); });
     return {};
   }
-  void stop() override {
-    stop_.store(true, std::memory_order_release);
-    if (thread_.joinable()) {
-      thread_.join();
-    }
-  }
-  [[nodiscard]] TimestampNs watermark_ns() const override {
-    return finished() ? kEndOfTime : watermark_ns_.load(std::memory_order_acquire);
-  }
-  [[nodiscard]] bool finished() const override { return finished_.load(std::memory_order_acquire); }
-  void report_changes(std::ostream& /*err*/) override {}
-  // A recorded run's clock is UTC, as `blockmap replay` reads it.
-  [[nodiscard]] hal::FixTime fix_time() const override { return hal::FixTime::kUtc; }
   [[nodiscard]] std::optional<hal::GeodeticPoint> origin() const override { return std::nullopt; }
   [[nodiscard]] std::size_t queue_bytes() const override {
     std::size_t bytes = odometry_.bytes() + imu_.bytes() + fixes_.bytes();
@@ -457,7 +466,7 @@ class ReplaySource final : public Source {
   template <typename T>
   bool push(SpscQueueRef<T>& queue, const T& value) {
     while (!queue.try_push(value)) {
-      if (stop_.load(std::memory_order_acquire)) {
+      if (stopping()) {
         return false;
       }
       std::this_thread::sleep_for(std::chrono::microseconds(200));
@@ -488,7 +497,7 @@ class ReplaySource final : public Source {
     for (std::size_t i = 0; i < scans.size(); ++i) {
       have_scan[i] = run_.next_scan(i, scans[i]);
     }
-    while (!stop_.load(std::memory_order_acquire)) {
+    while (!stopping()) {
       TimestampNs oldest_ns = kEndOfTime;
       int which = -3;  // -1 base, -2 fix, i >= 0 laser i
       if (have_base) {
@@ -527,9 +536,9 @@ class ReplaySource final : public Source {
       if (!pushed) {
         break;
       }
-      watermark_ns_.store(oldest_ns, std::memory_order_release);
+      publish_watermark(oldest_ns);
     }
-    finished_.store(true, std::memory_order_release);
+    finish();
   }
 
   RecordedRun run_;
@@ -540,10 +549,6 @@ class ReplaySource final : public Source {
   std::vector<std::unique_ptr<OwnedQueue<msg::LaserScan>>> scans_;
   std::vector<std::unique_ptr<std::atomic<std::uint64_t>>> published_;  // base, gps, lasers
   std::vector<std::string> laser_names_;
-  std::thread thread_;
-  std::atomic<bool> stop_{false};
-  std::atomic<bool> finished_{false};
-  std::atomic<TimestampNs> watermark_ns_{0};
 };
 
 }  // namespace
