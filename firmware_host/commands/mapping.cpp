@@ -135,21 +135,24 @@ void MappingSession::report(std::ostream& err, double data_s) const {
       mapper_.window().capacity(), static_cast<unsigned long long>(outputs_.updates()),
       static_cast<unsigned long long>(outputs_.binary_bytes()), outputs_.dir().c_str());
   err << text;
-  const std::uint64_t lost = c.scans_refused_full + c.scans_without_pose + c.messages_late +
-                             c.reorder_forced + r.refused_full + r.finalized_early +
-                             r.final_dropped;
+  const std::uint64_t lost = c.scans_refused_full + c.scans_too_many_beams + c.scans_without_pose +
+                             c.messages_late + c.reorder_forced + r.refused_full +
+                             r.finalized_early + r.final_dropped;
   if (lost > 0) {
-    std::snprintf(text, sizeof text,
-                  "mapper: %llu scans refused (queue full), %llu without a pose, %llu late "
-                  "messages, %llu forced out of the reorder buffer; registry: %llu refused, %llu "
-                  "finalized early, %llu final planes dropped (capacity)\n",
-                  static_cast<unsigned long long>(c.scans_refused_full),
-                  static_cast<unsigned long long>(c.scans_without_pose),
-                  static_cast<unsigned long long>(c.messages_late),
-                  static_cast<unsigned long long>(c.reorder_forced),
-                  static_cast<unsigned long long>(r.refused_full),
-                  static_cast<unsigned long long>(r.finalized_early),
-                  static_cast<unsigned long long>(r.final_dropped));
+    std::snprintf(
+        text, sizeof text,
+        "mapper: %llu scans refused (queue full), %llu with too many beams, %llu without a "
+        "pose, %llu late "
+        "messages, %llu forced out of the reorder buffer; registry: %llu refused, %llu "
+        "finalized early, %llu final planes dropped (capacity)\n",
+        static_cast<unsigned long long>(c.scans_refused_full),
+        static_cast<unsigned long long>(c.scans_too_many_beams),
+        static_cast<unsigned long long>(c.scans_without_pose),
+        static_cast<unsigned long long>(c.messages_late),
+        static_cast<unsigned long long>(c.reorder_forced),
+        static_cast<unsigned long long>(r.refused_full),
+        static_cast<unsigned long long>(r.finalized_early),
+        static_cast<unsigned long long>(r.final_dropped));
     err << text;
   }
 }

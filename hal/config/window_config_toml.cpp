@@ -44,6 +44,13 @@ pipeline::MapperConfig parse_window_config(std::string_view text, std::string_vi
     // and most of the mapper's cost (docs/mapper.md, Speed).
     c.extract_every_s =
         t.positive("extract_every_s", t.number_or("extract_every_s", c.extract_every_s));
+    // Scans are drawn this many seconds late, with the particle filter's smoothed path
+    // instead of its estimate of the moment: straight walls, a plane list as late.
+    c.localizer.map_pose_lag_s =
+        t.non_negative("pose_lag_s", t.number_or("pose_lag_s", c.localizer.map_pose_lag_s));
+    if (const std::string problem = localize::validate(c.localizer); !problem.empty()) {
+      t.fail("pose_lag_s", problem);
+    }
     t.finish();
   }
   return c;

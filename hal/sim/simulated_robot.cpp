@@ -37,10 +37,19 @@ pipeline::MapperConfig mapper_config_for(const RobotSpec& robot) {
   pipeline::MapperConfig config;
   config.localizer.antenna_height_m = robot.gps.antenna_m.z();
   config.laser_count = std::min(robot.lasers.size(), pipeline::kMaxLasers);
+  // An LMS2xx scan has at most 401 beams (100 deg at 0.25 deg); a TiM's telegram says.
+  constexpr std::size_t kLms2xxMaxBeams = 401;
+  config.max_beams = kLms2xxMaxBeams;
+  config.scans_per_s = 0.0;
   for (std::size_t i = 0; i < config.laser_count; ++i) {
-    const Mount& mount = robot.lasers[i].mount;
+    const LaserSpec& laser = robot.lasers[i];
+    const Mount& mount = laser.mount;
     config.laser_mounts[i] =
         map::SensorMount{mount.position_m, mount.roll_rad, mount.pitch_rad, mount.yaw_rad};
+    if (laser.protocol != LaserProtocol::kLms2xx) {
+      config.max_beams = msg::kMaxLaserBeams;
+    }
+    config.scans_per_s += laser.scan_rate_hz;  // at most one scan per mirror turn
   }
   return config;
 }

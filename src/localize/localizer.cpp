@@ -22,6 +22,13 @@ std::string validate(const LocalizerConfig& config) {
     return "map_pose_smoothing_s must be >= 0, map_pose_snap_m and map_pose_snap_rad > 0, and "
            "map_pose_capacity at least 2";
   }
+  const double window_s =
+      static_cast<double>(config.filter.history_steps) * config.filter.history_interval_s;
+  if (!(config.map_pose_lag_s >= 0.0) || config.map_pose_lag_s + 2.0 > window_s ||
+      config.map_pose_lag_samples < 2) {
+    return "map_pose_lag_s must be >= 0 and 2 s shorter than the filter's window "
+           "(history_steps x history_interval_s), and map_pose_lag_samples at least 2";
+  }
   return {};
 }
 
@@ -34,6 +41,9 @@ void Localizer::init(Arena& arena, const LocalizerConfig& config) {
       arena.allocate_array<Attitude>(config.filter.history_steps + 1, "localize.localizer");
   scratch_ = arena.allocate_array<Pose2>(config.filter.history_steps, "localize.localizer");
   map_poses_ = arena.allocate_array<Pose3>(config.map_pose_capacity, "localize.map_poses");
+  if (config.map_pose_lag_s > 0.0) {
+    lagged_ = arena.allocate_array<BaseMotion>(config.map_pose_lag_samples, "localize.map_poses");
+  }
 }
 
 std::size_t Localizer::arena_bytes(const LocalizerConfig& config) noexcept {
@@ -41,12 +51,13 @@ std::size_t Localizer::arena_bytes(const LocalizerConfig& config) noexcept {
   return ParticleFilter::arena_bytes(config.filter) +
          (config.filter.history_steps + 1) * sizeof(Attitude) +
          config.filter.history_steps * sizeof(Pose2) + config.map_pose_capacity * sizeof(Pose3) +
-         3 * kAlignment;
+         (config.map_pose_lag_s > 0.0 ? config.map_pose_lag_samples * sizeof(BaseMotion) : 0) +
+         4 * kAlignment;
 }
 
 std::size_t Localizer::memory_bytes() const noexcept {
   return filter_.memory_bytes() + attitudes_.size_bytes() + scratch_.size_bytes() +
-         map_poses_.size_bytes();
+         map_poses_.size_bytes() + lagged_.size_bytes();
 }
 
 void Localizer::on_base(const msg::OdometrySample& odometry, const msg::ImuSample& imu) noexcept {
@@ -72,7 +83,19 @@ void Localizer::on_base(const msg::OdometrySample& odometry, const msg::ImuSampl
   last_fore_aft_m_ = odometry.fore_aft_distance_m;
   filter_.predict(stamp_ns, distance_m, imu.yaw_rate_radps);
   record_if_stepped();
-  advance_map_pose(stamp_ns, distance_m, imu.yaw_rate_radps);
+  const BaseMotion motion{stamp_ns,  distance_m, imu.yaw_rate_radps,
+                          height_m_, roll_rad_,  pitch_rad_};
+  if (lagged_.empty()) {
+    advance_map_pose(motion);
+    return;
+  }
+  if (lagged_count_ == lagged_.size()) {
+    ++counters_.lag_forced;
+    advance_lagged_one();
+  }
+  lagged_[(lagged_first_ + lagged_count_) % lagged_.size()] = motion;
+  ++lagged_count_;
+  advance_lagged_map_pose(stamp_ns - ns_from_seconds(config_.map_pose_lag_s));
 }
 
 GpsOutcome Localizer::on_fix(const GpsObservation& fix, double up_m) noexcept {
@@ -90,8 +113,9 @@ GpsOutcome Localizer::on_fix(const GpsObservation& fix, double up_m) noexcept {
     last_height_ns_ = fix.stamp_ns;
   }
   record_if_stepped();
-  if (outcome != GpsOutcome::kRejected) {
-    pull_map_pose();
+  if (outcome != GpsOutcome::kRejected && lagged_.empty() && filter_.started()) {
+    pull_map_pose(filter_.estimate(),
+                  BaseMotion{last_base_ns_, 0.0, 0.0, height_m_, roll_rad_, pitch_rad_});
   }
   return outcome;
 }
@@ -104,20 +128,53 @@ double wrapped(double angle_rad) noexcept {
 
 }  // namespace
 
-void Localizer::advance_map_pose(TimestampNs stamp_ns, double distance_m,
-                                 double yaw_rate_radps) noexcept {
+void Localizer::advance_lagged_map_pose(TimestampNs until_ns) noexcept {
+  while (lagged_count_ > 0 && lagged_[lagged_first_].stamp_ns <= until_ns) {
+    advance_lagged_one();
+  }
+}
+
+void Localizer::flush_map_pose(TimestampNs until_ns) noexcept {
+  TimestampNs horizon_ns = 0;
+  while (lagged_count_ > 0 && (!map_pose_horizon(horizon_ns) || horizon_ns < until_ns)) {
+    advance_lagged_one();
+  }
+}
+
+void Localizer::advance_lagged_one() noexcept {
+  const BaseMotion motion = lagged_[lagged_first_];
+  lagged_first_ = (lagged_first_ + 1) % lagged_.size();
+  --lagged_count_;
+  if (!filter_.started()) {
+    return;
+  }
+  // The smoothed path at this sample's time, once per history step: the pose the fixes
+  // since then agree on.
+  const bool pull_due = !map_started_ || seconds_from_ns(motion.stamp_ns - last_pull_ns_) >=
+                                             config_.filter.history_interval_s;
+  if (map_started_) {
+    advance_map_pose(motion);
+  }
+  Pose2 smoothed;
+  if (pull_due && filter_.pose_at(motion.stamp_ns, smoothed)) {
+    pull_map_pose(smoothed, motion);
+    last_pull_ns_ = motion.stamp_ns;
+  }
+}
+
+void Localizer::advance_map_pose(const BaseMotion& motion) noexcept {
   if (!filter_.started()) {
     return;
   }
   if (!map_started_) {
-    pull_map_pose();  // starts at the estimate
+    pull_map_pose(filter_.estimate(), motion);  // starts at the estimate
     return;
   }
   // Dead reckoning with the filter's calibration of the odometry, at the mid-step heading.
-  const double dt_s = std::max(0.0, seconds_from_ns(stamp_ns - map_pose_.stamp_ns));
-  const double turn_rad = (yaw_rate_radps - yaw_rate_bias_radps_) * dt_s;
+  const double dt_s = std::max(0.0, seconds_from_ns(motion.stamp_ns - map_pose_.stamp_ns));
+  const double turn_rad = (motion.yaw_rate_radps - yaw_rate_bias_radps_) * dt_s;
   const double heading_rad = map_pose_.yaw_rad + 0.5 * turn_rad;
-  const double travel_m = distance_m * distance_scale_;
+  const double travel_m = motion.distance_m * distance_scale_;
   map_pose_.x_m += travel_m * std::cos(heading_rad);
   map_pose_.y_m += travel_m * std::sin(heading_rad);
   map_pose_.yaw_rad = wrapped(map_pose_.yaw_rad + turn_rad);
@@ -130,20 +187,16 @@ void Localizer::advance_map_pose(TimestampNs stamp_ns, double distance_m,
   pending_x_m_ -= share * pending_x_m_;
   pending_y_m_ -= share * pending_y_m_;
   pending_yaw_rad_ -= share * pending_yaw_rad_;
-  map_pose_.stamp_ns = stamp_ns;
-  keep_map_pose();
+  map_pose_.stamp_ns = motion.stamp_ns;
+  keep_map_pose(motion);
 }
 
-void Localizer::pull_map_pose() noexcept {
-  if (!filter_.started()) {
-    return;
-  }
-  const Pose2 estimate = filter_.estimate();
+void Localizer::pull_map_pose(const Pose2& target, const BaseMotion& motion) noexcept {
   distance_scale_ = filter_.mean_distance_scale();
   yaw_rate_bias_radps_ = filter_.mean_yaw_rate_bias_radps();
-  const double gap_x_m = estimate.x_m - map_pose_.x_m;
-  const double gap_y_m = estimate.y_m - map_pose_.y_m;
-  const double gap_yaw_rad = wrapped(estimate.yaw_rad - map_pose_.yaw_rad);
+  const double gap_x_m = target.x_m - map_pose_.x_m;
+  const double gap_y_m = target.y_m - map_pose_.y_m;
+  const double gap_yaw_rad = wrapped(target.yaw_rad - map_pose_.yaw_rad);
   const bool snap = !map_started_ || std::hypot(gap_x_m, gap_y_m) > config_.map_pose_snap_m ||
                     std::abs(gap_yaw_rad) > config_.map_pose_snap_rad;
   if (!snap) {
@@ -154,22 +207,22 @@ void Localizer::pull_map_pose() noexcept {
   }
   counters_.map_pose_snaps += map_started_ ? 1 : 0;
   map_started_ = true;
-  map_pose_.stamp_ns = estimate.stamp_ns;
-  map_pose_.x_m = estimate.x_m;
-  map_pose_.y_m = estimate.y_m;
-  map_pose_.yaw_rad = estimate.yaw_rad;
+  map_pose_.stamp_ns = target.stamp_ns;
+  map_pose_.x_m = target.x_m;
+  map_pose_.y_m = target.y_m;
+  map_pose_.yaw_rad = target.yaw_rad;
   pending_x_m_ = 0.0;
   pending_y_m_ = 0.0;
   pending_yaw_rad_ = 0.0;
-  keep_map_pose();
+  keep_map_pose(motion);
 }
 
-void Localizer::keep_map_pose() noexcept {
+void Localizer::keep_map_pose(const BaseMotion& motion) noexcept {
   // With the attitude and height of this sample (the base pitches at 1-2 Hz: the filter's
   // history steps, 4 Hz, would alias it).
-  map_pose_.z_m = height_m_;
-  map_pose_.roll_rad = roll_rad_;
-  map_pose_.pitch_rad = pitch_rad_;
+  map_pose_.z_m = motion.z_m;
+  map_pose_.roll_rad = motion.roll_rad;
+  map_pose_.pitch_rad = motion.pitch_rad;
   if (map_count_ > 0) {
     Pose3& newest = map_poses_[(map_first_ + map_count_ - 1) % map_poses_.size()];
     if (newest.stamp_ns == map_pose_.stamp_ns) {
@@ -183,6 +236,21 @@ void Localizer::keep_map_pose() noexcept {
   }
   map_poses_[(map_first_ + map_count_) % map_poses_.size()] = map_pose_;
   ++map_count_;
+}
+
+bool Localizer::map_pose_horizon(TimestampNs& out) const noexcept {
+  if (lagged_.empty()) {
+    if (!filter_.started()) {
+      return false;
+    }
+    out = filter_.last_stamp_ns();
+    return true;
+  }
+  if (map_count_ == 0) {
+    return false;
+  }
+  out = map_poses_[(map_first_ + map_count_ - 1) % map_poses_.size()].stamp_ns;
+  return true;
 }
 
 bool Localizer::map_pose_at(TimestampNs stamp_ns, Pose3& out) const noexcept {

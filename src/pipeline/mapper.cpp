@@ -63,6 +63,17 @@ map::PlaneRegistryConfig registry_config(const MapperConfig& config) noexcept {
 
 }  // namespace
 
+std::size_t scan_queue_slots(const MapperConfig& config) noexcept {
+  const double lag_s =
+      config.pose_source == PoseSource::kLocalizer ? config.localizer.map_pose_lag_s : 0.0;
+  if (!(lag_s > 0.0) || !(config.scans_per_s > 0.0)) {
+    return config.scan_queue_capacity;
+  }
+  const double held_s = lag_s + config.reorder_window_s + 1.0;
+  return std::max(config.scan_queue_capacity,
+                  static_cast<std::size_t>(std::ceil(held_s * config.scans_per_s)));
+}
+
 std::string validate(const MapperConfig& config) {
   if (std::string problem = localize::validate(config.localizer); !problem.empty()) {
     return problem;
@@ -91,6 +102,10 @@ std::string validate(const MapperConfig& config) {
   }
   if (!(config.extract_every_s > 0.0) || !(config.reorder_window_s >= 0.0)) {
     return "mapper: extract_every_s must be positive and reorder_window_s not negative";
+  }
+  if (config.max_beams < 1 || config.max_beams > msg::kMaxLaserBeams ||
+      !(config.scans_per_s >= 0.0)) {
+    return "mapper: max_beams must be 1 to 1141 and scans_per_s not negative";
   }
   if (config.reorder_capacity < 1 || config.scan_queue_capacity < 1 ||
       (config.pose_source == PoseSource::kExternal && config.max_external_poses < 2)) {
@@ -121,8 +136,11 @@ void Mapper::init(Arena& arena, const MapperConfig& config) {
   if (config.pose_source == PoseSource::kExternal) {
     poses_ = arena.allocate_array<localize::Pose3>(config.max_external_poses, "mapper.poses");
   }
-  scans_ = arena.allocate_array<QueuedScan>(config.scan_queue_capacity, "mapper.scans");
-  scan_slots_ = arena.allocate_array<std::uint32_t>(config.scan_queue_capacity, "mapper.scans");
+  const std::size_t slots = scan_queue_slots(config);
+  scans_ = arena.allocate_array<QueuedScan>(slots, "mapper.scans");
+  scan_slots_ = arena.allocate_array<std::uint32_t>(slots, "mapper.scans");
+  scan_codes_ = arena.allocate_array<std::uint16_t>(slots * config.max_beams, "mapper.scans");
+  expanded_ = arena.allocate_array<msg::LaserScan>(1, "mapper.scans").data();
   for (std::size_t slot = 0; slot < scan_slots_.size(); ++slot) {
     scan_slots_[slot] = static_cast<std::uint32_t>(slot);
   }
@@ -142,8 +160,9 @@ std::size_t Mapper::arena_bytes(const MapperConfig& config) noexcept {
          config.reorder_capacity * sizeof(Pending) +
          (config.pose_source == PoseSource::kExternal ? config.max_external_poses : 0) *
              sizeof(localize::Pose3) +
-         config.scan_queue_capacity * (sizeof(QueuedScan) + sizeof(std::uint32_t)) +
-         msg::kMaxLaserBeams * sizeof(Eigen::Vector3f) + 5 * kSlack;
+         scan_queue_slots(config) * (sizeof(QueuedScan) + sizeof(std::uint32_t) +
+                                     config.max_beams * sizeof(std::uint16_t)) +
+         sizeof(msg::LaserScan) + msg::kMaxLaserBeams * sizeof(Eigen::Vector3f) + 7 * kSlack;
 }
 
 // --- Messages in --------------------------------------------------------------------------
@@ -185,9 +204,13 @@ bool Mapper::on_scan(std::size_t laser, const msg::LaserScan& scan) noexcept {
     return false;
   }
   // The slots past the queue's end are the free ones.
-  QueuedScan& queued = scans_[scan_slots_[scan_count_]];
+  const std::uint32_t slot = scan_slots_[scan_count_];
+  QueuedScan& queued = scans_[slot];
+  if (!compact_scan(scan, queued.scan, codes_of(slot))) {
+    ++counters_.scans_too_many_beams;
+    return false;
+  }
   queued.laser = laser;
-  queued.scan = scan;
   ++scan_count_;
   return true;
 }
@@ -274,11 +297,7 @@ bool Mapper::pose_horizon(TimestampNs& out) const noexcept {
     out = poses_[(pose_first_ + pose_count_ - 1) % poses_.size()].stamp_ns;
     return true;
   }
-  if (!localizer_.filter().started()) {
-    return false;
-  }
-  out = localizer_.filter().last_stamp_ns();
-  return true;
+  return localizer_.map_pose_horizon(out);
 }
 
 bool Mapper::pose_at(TimestampNs stamp_ns, localize::Pose3& out) const noexcept {
@@ -312,8 +331,8 @@ std::ptrdiff_t Mapper::next_ready_scan() const noexcept {
   std::ptrdiff_t oldest = -1;
   TimestampNs oldest_ns = 0;
   for (std::size_t i = 0; i < scan_count_; ++i) {
-    const msg::LaserScan& scan = scans_[scan_slots_[i]].scan;
-    const bool covered = have_poses && map::ScanProjector::last_beam_stamp_ns(scan) <= horizon_ns;
+    const CompactScanHeader& scan = scans_[scan_slots_[i]].scan;
+    const bool covered = have_poses && scan.last_beam_ns <= horizon_ns;
     if ((covered || ending_) && (oldest < 0 || scan.header.stamp_ns < oldest_ns)) {
       oldest = static_cast<std::ptrdiff_t>(i);
       oldest_ns = scan.header.stamp_ns;
@@ -352,10 +371,11 @@ void Mapper::record_laser_position(std::size_t laser, const localize::Pose3& pos
   path.count = std::min(path.count + 1, path.origins_m.size());
 }
 
-void Mapper::project(const QueuedScan& queued) noexcept {
-  const msg::LaserScan& scan = queued.scan;
+void Mapper::project(const QueuedScan& queued, std::span<const std::uint16_t> codes) noexcept {
+  expand_scan(queued.scan, codes, *expanded_);
+  const msg::LaserScan& scan = *expanded_;
   const TimestampNs first_ns = scan.header.stamp_ns;
-  const TimestampNs last_ns = map::ScanProjector::last_beam_stamp_ns(scan);
+  const TimestampNs last_ns = queued.scan.last_beam_ns;
   localize::Pose3 first;
   localize::Pose3 last;
   TimestampNs horizon_ns = 0;
@@ -470,8 +490,12 @@ bool Mapper::step() noexcept {
   release_due();
   for (std::ptrdiff_t next = next_ready_scan(); next >= 0; next = next_ready_scan()) {
     const auto position = static_cast<std::size_t>(next);
-    const QueuedScan& queued = scans_[scan_slots_[position]];
+    const std::uint32_t slot = scan_slots_[position];
+    const QueuedScan& queued = scans_[slot];
     const TimestampNs stamp_ns = queued.scan.header.stamp_ns;
+    if (ending_ && pending_count_ == 0) {
+      localizer_.flush_map_pose(queued.scan.last_beam_ns);  // the last lag's scans
+    }
     if (!extraction_scheduled_) {
       extraction_scheduled_ = true;
       next_extraction_ns_ = stamp_ns + ns_from_seconds(config_.extract_every_s);
@@ -485,7 +509,7 @@ bool Mapper::step() noexcept {
       changes_ = registry_.changes();
       return true;
     }
-    project(queued);
+    project(queued, codes_of(slot));
     remove_scan(position);
   }
   if (!ending_ || pending_count_ > 0) {

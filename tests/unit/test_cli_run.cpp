@@ -87,6 +87,34 @@ TEST(RunCommand, BadOptionsGetOneClearLine) {
   fs::remove_all(out);
 }
 
+// Scans drawn 4 s late with the smoothed path: every scan still projected, the last 4 s at
+// the end of the input.
+TEST(RunCommand, APoseLagDrawsEveryScanLate) {
+  const fs::path out = scratch("lag");
+  fs::create_directories(out);
+  const auto projected = [](const std::string& err) {
+    const std::size_t at = err.find(" scans projected");
+    const std::size_t first = err.rfind(' ', at - 1) + 1;
+    return at == std::string::npos ? -1 : std::stoi(err.substr(first, at - first));
+  };
+  testing::CliResult live =
+      run_cli({"run", "--duration-s", "10", "--out", (out / "live").string()});
+  ASSERT_EQ(live.status, kExitOk) << live.err;
+  const std::string lag = (out / "lag.toml").string();
+  std::ofstream(lag) << "[mapper]\npose_lag_s = 4.0\n";
+  testing::CliResult lagged =
+      run_cli({"run", "--config", lag, "--duration-s", "10", "--out", (out / "lag").string()});
+  ASSERT_EQ(lagged.status, kExitOk) << lagged.err;
+  EXPECT_GT(projected(live.err), 1000);
+  EXPECT_EQ(projected(lagged.err), projected(live.err)) << lagged.err;
+  // Nothing refused: the queue grew to hold the lag's scans.
+  EXPECT_TRUE(lagged.err.find("scans refused") == std::string::npos ||
+              lagged.err.find("mapper: 0 scans refused (queue full), 0 with too many beams") !=
+                  std::string::npos)
+      << lagged.err;
+  fs::remove_all(out);
+}
+
 TEST(RunCommand, TheConfigSetsTheWindowAndTheExtractionsAndEveryMistakeNamesItsKey) {
   const fs::path out = scratch("window");
   fs::create_directories(out);
@@ -119,6 +147,7 @@ TEST(RunCommand, TheConfigSetsTheWindowAndTheExtractionsAndEveryMistakeNamesItsK
        "projection.max_range_m: must be more than min_range_m"},
       {"[mapper]\nextract_every_s = 0\n", "mapper.extract_every_s: must be > 0"},
       {"[mapper]\nextract_every = 2\n", "mapper.extract_every: unknown key"},
+      {"[mapper]\npose_lag_s = 59\n", "mapper.pose_lag_s: map_pose_lag_s must be >= 0 and 2 s"},
   };
   for (const auto& [text, expected] : mistakes) {
     result = run_cli({"run", "--config", config_with("bad.toml", text), "--duration-s", "1",

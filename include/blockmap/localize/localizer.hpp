@@ -50,6 +50,16 @@ struct LocalizerConfig {
   double map_pose_snap_rad = 0.35;  // 20 deg
   // Map poses kept, one per base sample: how far back map_pose_at() reaches (10 s at 100 Hz).
   std::size_t map_pose_capacity = 1024;
+  // 0: the map pose is drawn toward the estimate as it is now. L > 0: the map pose runs L
+  // seconds behind the newest base sample and is drawn toward the smoothed path at its own
+  // time (the pose the fixes of the following L seconds agree on), every history step. The
+  // forward estimate's heading wanders by degrees between fixes a few seconds apart, and
+  // scans drawn with it bend the walls; the smoothed path's does not (docs/mapper.md,
+  // Accuracy). The price is L seconds of delay before a scan can be drawn. L must stay
+  // inside the filter's window (history_steps x history_interval_s) with 2 s to spare.
+  double map_pose_lag_s = 0.0;
+  // Base samples waiting for their lagged map pose (L seconds at the base's rate).
+  std::size_t map_pose_lag_samples = 4096;
 };
 
 // Empty when usable, otherwise what is wrong.
@@ -60,6 +70,7 @@ struct LocalizerCounters {
   std::uint64_t odometry_jumps = 0;  // integrator resets skipped
   std::uint64_t stale_samples = 0;   // older than the last one, left out
   std::uint64_t map_pose_snaps = 0;  // map poses moved to the estimate at once
+  std::uint64_t lag_forced = 0;      // base samples drawn early: map_pose_lag_samples was full
 };
 
 class Localizer {
@@ -81,6 +92,13 @@ class Localizer {
   // fixes), near the filter's estimate over seconds, with the base's attitude of that sample.
   // False before the filter starts and outside the last map_pose_capacity base samples.
   bool map_pose_at(TimestampNs stamp_ns, Pose3& out) const noexcept;
+  // At the end of the input: the lagged map pose goes on until it reaches until_ns or the
+  // last base sample (the smoothed path is as good as it will get). A step at a time, as the
+  // last scans need it: the map poses' ring holds map_pose_capacity of them.
+  void flush_map_pose(TimestampNs until_ns) noexcept;
+  // The newest time map_pose_at() answers for: the last base sample, or with a lag, the last
+  // one the lagged map pose has reached. False before there is any.
+  bool map_pose_horizon(TimestampNs& out) const noexcept;
 
   [[nodiscard]] const ParticleFilter& filter() const noexcept { return filter_; }
   [[nodiscard]] const LocalizerCounters& counters() const noexcept { return counters_; }
@@ -94,13 +112,26 @@ class Localizer {
     float roll_rad = 0.0f;
     float pitch_rad = 0.0f;
   };
+  // One base sample as the map pose needs it (kept for map_pose_lag_s when there is a lag).
+  struct BaseMotion {
+    TimestampNs stamp_ns = 0;
+    double distance_m = 0.0;
+    double yaw_rate_radps = 0.0;
+    double z_m = 0.0;
+    double roll_rad = 0.0;
+    double pitch_rad = 0.0;
+  };
   void record_if_stepped() noexcept;
+  // The base samples whose lagged map pose is due (older than map_pose_lag_s), in order.
+  void advance_lagged_map_pose(TimestampNs until_ns) noexcept;
+  void advance_lagged_one() noexcept;
   // One base sample's motion for the map pose, and the share of the pending correction due.
-  void advance_map_pose(TimestampNs stamp_ns, double distance_m, double yaw_rate_radps) noexcept;
-  // After a fix: the gap from the map pose to the filter's estimate becomes the correction to
-  // make over map_pose_smoothing_s (or is closed at once beyond the snap limits).
-  void pull_map_pose() noexcept;
-  void keep_map_pose() noexcept;
+  void advance_map_pose(const BaseMotion& motion) noexcept;
+  // The gap from the map pose to `target` becomes the correction to make over
+  // map_pose_smoothing_s (or is closed at once beyond the snap limits): after a fix toward
+  // the estimate, with a lag toward the smoothed path at each history step.
+  void pull_map_pose(const Pose2& target, const BaseMotion& motion) noexcept;
+  void keep_map_pose(const BaseMotion& motion) noexcept;
   [[nodiscard]] Attitude attitude_at(TimestampNs stamp_ns) const noexcept;
   [[nodiscard]] Pose3 completed(const Pose2& pose) const noexcept;
 
@@ -132,6 +163,12 @@ class Localizer {
   std::span<Pose3> map_poses_;  // a ring, oldest at map_first_
   std::size_t map_first_ = 0;
   std::size_t map_count_ = 0;
+  // With a lag: the base samples not yet drawn (a ring, oldest at lagged_first_), and when
+  // the lagged map pose was last drawn toward the smoothed path.
+  std::span<BaseMotion> lagged_;
+  std::size_t lagged_first_ = 0;
+  std::size_t lagged_count_ = 0;
+  TimestampNs last_pull_ns_ = 0;
 };
 
 }  // namespace blockmap::localize

@@ -32,6 +32,7 @@
 #include "blockmap/msg/laser_scan.hpp"
 #include "blockmap/msg/odometry.hpp"
 #include "blockmap/msg/plane_patch.hpp"
+#include "blockmap/pipeline/compact_scan.hpp"
 #include "blockmap/planes/plane_detector.hpp"
 #include "blockmap/planes/planes_config.hpp"
 
@@ -108,7 +109,16 @@ struct MapperConfig {
   double reorder_window_s = 0.25;  // a message this much older than the newest is released
   std::size_t reorder_capacity = 512;
   std::size_t scan_queue_capacity = 128;  // scans wait for the reorder window and the poses
+  // The most beams a scan of these lasers has (a queued scan keeps room for this many), and
+  // all lasers' scans per second together: with a pose lag (localizer.map_pose_lag_s) the
+  // queue grows to hold the lag's scans (scan_queue_slots()). 0: not known, no growth.
+  std::size_t max_beams = msg::kMaxLaserBeams;
+  double scans_per_s = 0.0;
 };
+
+// The scans the queue holds: scan_queue_capacity, or the lag, the reorder window and a second
+// more of scans at scans_per_s when that is more.
+[[nodiscard]] std::size_t scan_queue_slots(const MapperConfig& config) noexcept;
 
 // Empty when usable, otherwise what is wrong.
 [[nodiscard]] std::string validate(const MapperConfig& config);
@@ -124,8 +134,9 @@ struct MapperCounters {
   std::uint64_t scans_refused_full = 0;  // the scan queue was full: the newest was refused
   std::uint64_t scans_without_pose = 0;  // no pose covers the scan (before the first one)
   std::uint64_t scans_unknown_laser = 0;
-  std::uint64_t messages_late = 0;   // older than what was already processed: dropped
-  std::uint64_t reorder_forced = 0;  // the reorder buffer was full: its oldest went early
+  std::uint64_t scans_too_many_beams = 0;  // more than max_beams: refused
+  std::uint64_t messages_late = 0;         // older than what was already processed: dropped
+  std::uint64_t reorder_forced = 0;        // the reorder buffer was full: its oldest went early
   std::uint64_t extractions = 0;
   std::uint64_t incremental_extractions = 0;  // of those, with the detector's kept samples
   std::uint64_t sections_searched = 0;        // over all extractions
@@ -223,7 +234,7 @@ class Mapper {
   };
   struct QueuedScan {
     std::size_t laser = 0;
-    msg::LaserScan scan;
+    CompactScanHeader scan;  // its beams: scan_codes_, max_beams per slot
   };
 
   void enqueue(const Pending& message) noexcept;
@@ -234,7 +245,10 @@ class Mapper {
   [[nodiscard]] bool pose_at(TimestampNs stamp_ns, localize::Pose3& out) const noexcept;
   // The oldest queued scan whose last beam the poses cover (all of them when ending); or -1.
   [[nodiscard]] std::ptrdiff_t next_ready_scan() const noexcept;
-  void project(const QueuedScan& queued) noexcept;
+  void project(const QueuedScan& queued, std::span<const std::uint16_t> codes) noexcept;
+  [[nodiscard]] std::span<std::uint16_t> codes_of(std::uint32_t slot) const noexcept {
+    return scan_codes_.subspan(slot * config_.max_beams, config_.max_beams);
+  }
   // Takes the scan at `position` in the queue out (its slot becomes free).
   void remove_scan(std::size_t position) noexcept;
   // The window's samples into the detector: all of them, or those that changed.
@@ -279,6 +293,8 @@ class Mapper {
   // slots in arrival order, and the slots not in it are free.
   std::span<QueuedScan> scans_;
   std::span<std::uint32_t> scan_slots_;  // [0, scan_count_): waiting, in arrival order
+  std::span<std::uint16_t> scan_codes_;
+  msg::LaserScan* expanded_ = nullptr;  // the scan being projected, in full
   std::size_t scan_count_ = 0;
   std::span<Eigen::Vector3f> points_;
   // Each laser's scan plane at its latest scan, and where it has been (a ring, any order).
