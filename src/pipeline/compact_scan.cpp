@@ -80,7 +80,9 @@ bool compact_scan(const msg::LaserScan& scan, CompactScanHeader& header,
     }
     const auto code = static_cast<std::uint16_t>(
         std::min<long>(code_of(scan.ranges_m[i], header.unit_m), kInvalidCode - 1));
-    header.rounded_beams += range_of(code, header.unit_m) != scan.ranges_m[i] ? 1 : 0;
+    if (range_of(code, header.unit_m) != scan.ranges_m[i]) {
+      ++header.rounded_beams;
+    }
     codes[i] = code;
   }
   return true;

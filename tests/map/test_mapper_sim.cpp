@@ -17,6 +17,7 @@
 #include "blockmap/hal/sim/simulated_robot.hpp"
 #include "blockmap/hal/sim/world.hpp"
 #include "blockmap/pipeline/mapper.hpp"
+#include "footprint_score.hpp"
 #include "plane_truth.hpp"
 
 namespace blockmap::pipeline {
@@ -32,6 +33,7 @@ constexpr double kDeterminismDurationS = 15.0;
 
 struct MapperRun {
   std::vector<msg::PlanePatch> final_planes;
+  std::vector<buildings::Building> buildings;
   std::vector<hal::sim::TruthFace> faces;
   // The plane list a consumer of the stream holds at the end: every change applied by id.
   std::map<std::uint32_t, msg::PlanePatch> streamed;
@@ -98,6 +100,7 @@ MapperRun map_world(const std::string& world, PoseSource poses, double duration_
   mapper->end_of_input();
   consume();
   run.final_planes.assign(mapper->final_planes().begin(), mapper->final_planes().end());
+  run.buildings.assign(mapper->buildings().begin(), mapper->buildings().end());
   run.faces = simulated->simulation().scene().faces();
   run.counters = mapper->counters();
   run.registry = mapper->registry().counters();
@@ -272,6 +275,38 @@ AlignedScore score_aligned(const MapperRun& run, const char* label) {
   return out;
 }
 
+// The mapper's buildings against the world's footprints: for each truth building, the
+// best-overlapping fitted one.
+struct BuildingMatch {
+  int truth_id = 0;
+  std::string truth_shape;
+  std::string shape = "not found";
+  double iou = 0.0;
+};
+
+std::vector<BuildingMatch> building_matches(const MapperRun& run, const hal::sim::World& world,
+                                            const char* label) {
+  std::vector<BuildingMatch> matches;
+  for (const hal::sim::Building& truth : world.buildings) {
+    BuildingMatch match;
+    match.truth_id = truth.id;
+    match.truth_shape = hal::sim::to_string(truth.shape);
+    for (const buildings::Building& building : run.buildings) {
+      const double iou = testing::footprint_iou(
+          std::span<const Eigen::Vector2d>(building.footprint_m.data(), building.footprint_size),
+          truth.footprint_m);
+      if (iou > match.iou) {
+        match.iou = iou;
+        match.shape = std::string(buildings::to_string(building.shape));
+      }
+    }
+    std::printf("%s: truth building %d %s: %s, IoU %.3f\n", label, truth.id,
+                match.truth_shape.c_str(), match.shape.c_str(), match.iou);
+    matches.push_back(match);
+  }
+  return matches;
+}
+
 // Scans drawn 30 s late, with the smoothed path (LocalizerConfig::map_pose_lag_s): the loop's
 // walls keep their directions. Measured on the whole path: the best turn onto the truth is
 // 0.13 deg (5.8 deg drawn live), 5/5 faces found after it (2/5 live), 10 structural planes
@@ -290,6 +325,36 @@ TEST(MapperSim, UscBlockWithLaggedFilterPoses) {
   EXPECT_LE(run.counters.scans_without_pose, 40u);  // before the first fix, as when live
   EXPECT_GT(run.counters.scans_projected, 20000u);
   expect_stream_gives_final_list(run);
+  // The block's building: IoU 0.959 (0.910 drawn live).
+  const std::vector<BuildingMatch> matches =
+      building_matches(run, hal::sim::load_world("usc_block"), "usc_block, lagged");
+  ASSERT_EQ(matches.size(), 1u);
+  EXPECT_EQ(matches[0].shape, "rect");
+  EXPECT_GE(matches[0].iou, 0.93);
+}
+
+// benning's buildings from scans drawn 30 s late (docs/buildings.md): the shapes come right
+// where the live poses bent them. Measured on the whole path, seed 3: 5 of 6 shapes right,
+// IoU 0.60-0.83, mean 0.75 (drawn live: 3 of 6, 0.33-0.80, mean 0.65). The 0.85
+// still waits on the smoothed path's metre of absolute error.
+TEST(MapperSim, BenningBuildingsWithLaggedFilterPoses) {
+#if defined(BLOCKMAP_QUICK_WORLDS)
+  GTEST_SKIP() << "the optimized host trees drive benning with the lagged poses";
+#endif
+  const MapperRun run = map_world("benning", PoseSource::kLocalizer, kDurationS, true, 30.0);
+  std::size_t right_shapes = 0;
+  double iou_sum = 0.0;
+  const hal::sim::World world = hal::sim::load_world("benning");
+  const std::vector<BuildingMatch> matches = building_matches(run, world, "benning, lagged");
+  for (const BuildingMatch& match : matches) {
+    right_shapes += match.shape == match.truth_shape ? 1U : 0U;
+    iou_sum += match.iou;
+    EXPECT_GT(match.iou, 0.55) << "truth building " << match.truth_id;
+  }
+  ASSERT_EQ(matches.size(), 6u);
+  EXPECT_GE(right_shapes, 5u);
+  EXPECT_GT(iou_sum / static_cast<double>(matches.size()), 0.72);
+  EXPECT_EQ(run.counters.scans_refused_full, 0u);
 }
 
 TEST(MapperSim, UscBlockWithFilterPoses) {
