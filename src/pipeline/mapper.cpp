@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 #include "blockmap/core/check.hpp"
@@ -325,14 +326,18 @@ std::size_t Mapper::smoothed_poses(std::span<localize::Pose3> out) const noexcep
 
 // --- Scans ---------------------------------------------------------------------------------
 
-std::ptrdiff_t Mapper::next_ready_scan() const noexcept {
+std::ptrdiff_t Mapper::next_ready_scan(TimestampNs& oldest_waiting_ns) const noexcept {
   TimestampNs horizon_ns = 0;
   const bool have_poses = pose_horizon(horizon_ns);
   std::ptrdiff_t oldest = -1;
   TimestampNs oldest_ns = 0;
+  oldest_waiting_ns = std::numeric_limits<TimestampNs>::max();
   for (std::size_t i = 0; i < scan_count_; ++i) {
     const CompactScanHeader& scan = scans_[scan_slots_[i]].scan;
     const bool covered = have_poses && scan.last_beam_ns <= horizon_ns;
+    if (!covered) {
+      oldest_waiting_ns = std::min(oldest_waiting_ns, scan.header.stamp_ns);
+    }
     if ((covered || ending_) && (oldest < 0 || scan.header.stamp_ns < oldest_ns)) {
       oldest = static_cast<std::ptrdiff_t>(i);
       oldest_ns = scan.header.stamp_ns;
@@ -488,7 +493,9 @@ bool Mapper::step() noexcept {
   registry_.begin_update();
   changes_ = {};
   release_due();
-  for (std::ptrdiff_t next = next_ready_scan(); next >= 0; next = next_ready_scan()) {
+  TimestampNs oldest_waiting_ns = 0;
+  for (std::ptrdiff_t next = next_ready_scan(oldest_waiting_ns); next >= 0;
+       next = next_ready_scan(oldest_waiting_ns)) {
     const auto position = static_cast<std::size_t>(next);
     const std::uint32_t slot = scan_slots_[position];
     const QueuedScan& queued = scans_[slot];
@@ -497,8 +504,17 @@ bool Mapper::step() noexcept {
       localizer_.flush_map_pose(queued.scan.last_beam_ns);  // the last lag's scans
     }
     if (!extraction_scheduled_) {
+      // From the oldest scan queued, covered or not: the same periods however the messages
+      // were batched between steps.
       extraction_scheduled_ = true;
-      next_extraction_ns_ = stamp_ns + ns_from_seconds(config_.extract_every_s);
+      next_extraction_ns_ =
+          std::min(stamp_ns, oldest_waiting_ns) + ns_from_seconds(config_.extract_every_s);
+    }
+    if (stamp_ns >= next_extraction_ns_ && !ending_ && oldest_waiting_ns < next_extraction_ns_) {
+      // A scan of the period still waits for its poses (a laser whose scans take longer
+      // ends later): the extraction waits for it, so that what it holds does not depend on
+      // how the messages were batched between two steps.
+      break;
     }
     if (stamp_ns >= next_extraction_ns_ && window_.placed()) {
       // Every scan before this one is in: the planes of the last period.

@@ -244,7 +244,8 @@ class Mapper {
   [[nodiscard]] bool pose_horizon(TimestampNs& out) const noexcept;
   [[nodiscard]] bool pose_at(TimestampNs stamp_ns, localize::Pose3& out) const noexcept;
   // The oldest queued scan whose last beam the poses cover (all of them when ending); or -1.
-  [[nodiscard]] std::ptrdiff_t next_ready_scan() const noexcept;
+  // oldest_waiting_ns: the oldest stamp among the queued scans the poses do not cover yet.
+  [[nodiscard]] std::ptrdiff_t next_ready_scan(TimestampNs& oldest_waiting_ns) const noexcept;
   void project(const QueuedScan& queued, std::span<const std::uint16_t> codes) noexcept;
   [[nodiscard]] std::span<std::uint16_t> codes_of(std::uint32_t slot) const noexcept {
     return scan_codes_.subspan(slot * config_.max_beams, config_.max_beams);
