@@ -592,18 +592,22 @@ bool ParticleFilter::pose_at(TimestampNs stamp_ns, Pose2& out) const noexcept {
     out = interpolate(newest_span_earlier_, newest_span_later_, stamp_ns);
     return true;
   }
+  // Back from the newest step to the first one at or before the stamp; only the two steps
+  // around it are averaged (each costs a pass over the lineages and a sine and cosine each).
   Pose2 later = estimate();
   start_lineages();
   for (std::size_t age = 0; age < history_size_; ++age) {
+    const bool bracketed = history_stamps_[slot_of_age(age)] <= stamp_ns;
     if (age > 0) {
+      if (bracketed) {
+        later = lineage_pose(age - 1);
+      }
       step_lineages_back(age - 1);
     }
-    const Pose2 earlier = lineage_pose(age);
-    if (earlier.stamp_ns <= stamp_ns) {
-      out = interpolate(earlier, later, stamp_ns);
+    if (bracketed) {
+      out = interpolate(lineage_pose(age), later, stamp_ns);
       return true;
     }
-    later = earlier;
   }
   return false;
 }

@@ -332,8 +332,15 @@ std::ptrdiff_t Mapper::next_ready_scan(TimestampNs& oldest_waiting_ns) const noe
   std::ptrdiff_t oldest = -1;
   TimestampNs oldest_ns = 0;
   oldest_waiting_ns = std::numeric_limits<TimestampNs>::max();
+  // The queue is in arrival order, and messages arrive within reorder_window_s of time
+  // order: past a scan that much newer than the horizon, none is covered, and none older
+  // than the horizon waits. (With a pose lag the queue holds thousands of scans.)
+  const TimestampNs last_useful_ns = horizon_ns + ns_from_seconds(config_.reorder_window_s);
   for (std::size_t i = 0; i < scan_count_; ++i) {
     const CompactScanHeader& scan = scans_[scan_slots_[i]].scan;
+    if (have_poses && !ending_ && scan.header.stamp_ns > last_useful_ns) {
+      break;
+    }
     const bool covered = have_poses && scan.last_beam_ns <= horizon_ns;
     if (!covered) {
       oldest_waiting_ns = std::min(oldest_waiting_ns, scan.header.stamp_ns);
