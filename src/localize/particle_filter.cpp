@@ -38,6 +38,12 @@ double wrap_angle(double angle_rad) noexcept {
 // call cos and sin.
 constexpr double kSmallTurnRad = 0.05;
 
+// A batch of odometry is applied as one arc: at most this much turn (the chord of an arc
+// that turns 0.02 rad is 0.002 % shorter than the arc), distance, or base samples.
+constexpr double kMaxPendingTurnRad = 0.02;
+constexpr double kMaxPendingDistanceM = 0.5;
+constexpr std::uint32_t kMaxPendingSteps = 8;
+
 // cos and sin of a small angle by their series: 1 - a^2/2 + a^4/24 and a - a^3/6 + a^5/120.
 std::pair<double, double> small_rotation(double a) noexcept {
   const double a2 = a * a;
@@ -136,21 +142,59 @@ void ParticleFilter::predict(TimestampNs stamp_ns, double distance_m,
     return;
   }
   ++counters_.predictions;
+  accumulate_motion(dt_s, distance_m, yaw_rate_radps);
+  // The particles move once per batch of odometry: before a history step, when the batch
+  // has turned or travelled enough that one arc no longer stands for it, or is long.
+  const bool history_due = stamp_ns >= next_history_ns_;
+  if (history_due || std::abs(pending_.turn_rad) >= kMaxPendingTurnRad ||
+      std::abs(pending_.distance_m) >= kMaxPendingDistanceM || pending_.steps >= kMaxPendingSteps) {
+    apply_motion();
+  }
+  if (history_due) {
+    push_history(stamp_ns);
+  }
+}
+
+void ParticleFilter::accumulate_motion(double dt_s, double distance_m,
+                                       double yaw_rate_radps) noexcept {
+  // Each step's noise is independent, so a batch's noise is one draw with the summed
+  // variances; the particles' scale and bias act on the summed distance and time alike.
   const double travelled_m = std::abs(distance_m);
-  const double distance_sigma = config_.distance_noise_per_sqrt_m * std::sqrt(travelled_m);
-  const double yaw_sigma =
-      std::sqrt(config_.yaw_rate_noise_radps * config_.yaw_rate_noise_radps * dt_s * dt_s +
-                config_.yaw_noise_per_sqrt_m * config_.yaw_noise_per_sqrt_m * travelled_m);
-  const double scale_sigma = config_.scale_walk_per_sqrt_m * std::sqrt(travelled_m);
-  const double bias_sigma = config_.yaw_rate_bias_walk_radps_per_sqrt_s * std::sqrt(dt_s);
+  const double yaw_rate_noise = config_.yaw_rate_noise_radps * dt_s;
+  pending_.distance_m += distance_m;
+  pending_.turn_rad += yaw_rate_radps * dt_s;
+  pending_.dt_s += dt_s;
+  pending_.distance_variance_m2 +=
+      config_.distance_noise_per_sqrt_m * config_.distance_noise_per_sqrt_m * travelled_m;
+  pending_.yaw_variance_rad2 += yaw_rate_noise * yaw_rate_noise + config_.yaw_noise_per_sqrt_m *
+                                                                      config_.yaw_noise_per_sqrt_m *
+                                                                      travelled_m;
+  pending_.scale_variance +=
+      config_.scale_walk_per_sqrt_m * config_.scale_walk_per_sqrt_m * travelled_m;
+  pending_.bias_variance_radps2 += config_.yaw_rate_bias_walk_radps_per_sqrt_s *
+                                   config_.yaw_rate_bias_walk_radps_per_sqrt_s * dt_s;
+  ++pending_.steps;
+}
+
+void ParticleFilter::apply_motion() noexcept {
+  if (pending_.steps == 0) {
+    return;
+  }
+  const PendingMotion motion = pending_;
+  pending_ = PendingMotion{};
+  const double distance_sigma = std::sqrt(motion.distance_variance_m2);
+  const double yaw_sigma = std::sqrt(motion.yaw_variance_rad2);
+  const double scale_sigma = std::sqrt(motion.scale_variance);
+  const double bias_sigma = std::sqrt(motion.bias_variance_radps2);
   for (std::size_t i = 0; i < count_; ++i) {
-    // Each particle's own wheels and gyroscope: its scale and bias, plus this step's noise.
-    const double d = distance_m * scale_[i] + distance_sigma * gaussian();
-    const double turn = (yaw_rate_radps - yaw_rate_bias_radps_[i]) * dt_s + yaw_sigma * gaussian();
+    // Each particle's own wheels and gyroscope: its scale and bias, plus this batch's noise.
+    const double d = motion.distance_m * scale_[i] + distance_sigma * gaussian();
+    const double turn =
+        motion.turn_rad - yaw_rate_bias_radps_[i] * motion.dt_s + yaw_sigma * gaussian();
     const double next_yaw = yaw_rad_[i] + turn;
     if (std::abs(turn) < kSmallTurnRad) {
       // Along the arc's mid-point heading, by rotating the particle's (cos, sin) of yaw by
-      // half the turn twice: no trigonometric call per particle and step.
+      // half the turn twice: no trigonometric call per particle and batch.
       const auto [c_half, s_half] = small_rotation(0.5 * turn);
       const double c_mid = cos_yaw_[i] * c_half - sin_yaw_[i] * s_half;
       const double s_mid = sin_yaw_[i] * c_half + cos_yaw_[i] * s_half;
@@ -169,9 +213,6 @@ void ParticleFilter::predict(TimestampNs stamp_ns, double distance_m,
     }
     scale_[i] += scale_sigma * gaussian();
     yaw_rate_bias_radps_[i] += bias_sigma * gaussian();
-  }
-  if (stamp_ns >= next_history_ns_) {
-    push_history(stamp_ns);
   }
 }
 
@@ -195,6 +236,7 @@ ParticleFilter::FixError ParticleFilter::fix_error(const GpsObservation& fix) co
 
 GpsOutcome ParticleFilter::update(const GpsObservation& fix) noexcept {
   ++version_;
+  apply_motion();  // the particles where the odometry says they are at the fix
   const FixError error = fix_error(fix);
   if (!started_) {
     start_at(fix, config_.initial_position_sigma_m, false);
@@ -624,6 +666,15 @@ Pose2 ParticleFilter::estimate() const noexcept {
     cos_sum += weight_[i] * cos_yaw_[i];
   }
   pose.yaw_rad = std::atan2(sin_sum, cos_sum);
+  if (pending_.steps > 0) {
+    // The odometry not yet applied to the particles, applied to their mean.
+    const double turn_rad = pending_.turn_rad - mean_yaw_rate_bias_radps() * pending_.dt_s;
+    const double travel_m = pending_.distance_m * mean_distance_scale();
+    const double heading_rad = pose.yaw_rad + 0.5 * turn_rad;
+    pose.x_m += travel_m * std::cos(heading_rad);
+    pose.y_m += travel_m * std::sin(heading_rad);
+    pose.yaw_rad = wrap_angle(pose.yaw_rad + turn_rad);
+  }
   return pose;
 }
 

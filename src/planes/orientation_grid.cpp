@@ -77,6 +77,7 @@ void OrientationGrid::init(Arena& arena, double angle_bin_deg, OrientationMode m
       row_cell_[static_cast<std::uint32_t>(cell_row_[cell])] = cell;
     }
   }
+  mark_searched_heights(arena);
   neighbour_table_ = arena.allocate_array<Neighbour>(
       static_cast<std::size_t>(rows) * kMaxNeighbours, "planes.orientation_grid");
   neighbour_count_ = arena.allocate_array<std::uint8_t>(rows, "planes.orientation_grid");
@@ -84,6 +85,29 @@ void OrientationGrid::init(Arena& arena, double angle_bin_deg, OrientationMode m
     build_neighbours();
   }
   build_kernels(arena, static_cast<float>(degrees_to_radians(kernel_deg)), contents);
+}
+
+void OrientationGrid::mark_searched_heights(Arena& arena) {
+  // A bin of |z| may hold a searched cell when a band its theta range rounds to has a row
+  // (the cells of a band are all searched or all not).
+  searched_height_ = arena.allocate_array<std::uint8_t>(kHeightBins, "planes.orientation_grid");
+  const auto band_at = [&](double theta_rad) {
+    const double band = std::floor(theta_rad / static_cast<double>(band_step_rad_) + 0.5);
+    return static_cast<std::uint32_t>(std::clamp(band, 0.0, static_cast<double>(band_count_ - 1)));
+  };
+  for (std::size_t bin = 0; bin < kHeightBins; ++bin) {
+    const double z_low = static_cast<double>(bin) / kHeightBins;
+    const double z_high = static_cast<double>(bin + 1) / kHeightBins;
+    // One band either way of the range: float rounding in cell_of.
+    const std::uint32_t first = band_at(std::acos(std::min(z_high, 1.0)));
+    const std::uint32_t last = band_at(std::acos(z_low));
+    std::uint8_t any = 0;
+    for (std::uint32_t band = first == 0 ? 0 : first - 1;
+         band <= std::min(last + 1, band_count_ - 1); ++band) {
+      any |= cell_row_[band_first_cell_[band]] >= 0 ? 1 : 0;
+    }
+    searched_height_[bin] = any;
+  }
 }
 
 void OrientationGrid::build_kernels(Arena& arena, float kernel_rad, Contents contents) {
@@ -162,7 +186,7 @@ std::size_t OrientationGrid::memory_bytes() const noexcept {
   return band_first_cell_.size_bytes() + band_cells_.size_bytes() + cell_normal_.size_bytes() +
          cell_row_.size_bytes() + row_cell_.size_bytes() + neighbour_table_.size_bytes() +
          neighbour_count_.size_bytes() + surface_first_.size_bytes() + line_first_.size_bytes() +
-         flat_.size_bytes();
+         flat_.size_bytes() + searched_height_.size_bytes();
 }
 
 }  // namespace blockmap::planes

@@ -183,7 +183,7 @@ std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
   if (caching_) {
     cache_.end(merger_.section_planes(), merger_.counters().section_planes_dropped_full == 0);
   }
-  const std::span<const msg::PlanePatch> planes = merger_.merge(sections_);
+  const std::span<const msg::PlanePatch> planes = merger_.merge();
   stats_.planes = planes.size();
   stats_.planes_excluded = merger_.counters().planes_excluded;
   stats_.overflows =

@@ -94,7 +94,7 @@ std::uint32_t PlaneMerger::find_root(std::uint32_t i) noexcept {
   return i;
 }
 
-void PlaneMerger::join_neighbouring_section_planes(const SectionGrid& sections) noexcept {
+void PlaneMerger::join_neighbouring_section_planes() noexcept {
   const double cos_angle = cos_deg(config_.merge_angle_deg);
   const auto same_plane = [&](const SectionPlane& a, const SectionPlane& b) {
     if (std::abs(a.normal_unit.dot(b.normal_unit)) < cos_angle) {
@@ -105,24 +105,22 @@ void PlaneMerger::join_neighbouring_section_planes(const SectionGrid& sections) 
     return std::abs(a.normal_unit.dot(cb) - a.d_m) <= config_.merge_distance_m &&
            std::abs(b.normal_unit.dot(ca) - b.d_m) <= config_.merge_distance_m;
   };
-  const auto first = planes_.begin();
-  const auto last = planes_.begin() + static_cast<std::ptrdiff_t>(plane_count_);
-  std::array<CellKey, 13> neighbours{};
+  // The planes are in section order, and a neighbouring section's key is the section's plus
+  // a fixed offset (the packed coordinates have room): per offset, one cursor that only moves
+  // forward finds the neighbour's planes, instead of a binary search per plane and offset.
+  const std::span<const CellKey, 13> offsets = SectionGrid::later_neighbour_offsets();
+  std::array<std::size_t, 13> cursor{};
   for (std::size_t i = 0; i < plane_count_; ++i) {
-    const std::size_t count = sections.later_neighbours(planes_[i].section, neighbours);
-    for (std::size_t k = 0; k < count; ++k) {
-      const auto range =
-          std::equal_range(first, last, neighbours[k], [](const auto& a, const auto& b) {
-            if constexpr (std::is_same_v<std::decay_t<decltype(a)>, SectionPlane>) {
-              return a.section < b;
-            } else {
-              return a < b.section;
-            }
-          });
-      for (auto it = range.first; it != range.second; ++it) {
-        if (same_plane(planes_[i], *it)) {
+    for (std::size_t k = 0; k < offsets.size(); ++k) {
+      const CellKey neighbour = planes_[i].section + offsets[k];
+      std::size_t& at = cursor[k];
+      while (at < plane_count_ && planes_[at].section < neighbour) {
+        ++at;
+      }
+      for (std::size_t j = at; j < plane_count_ && planes_[j].section == neighbour; ++j) {
+        if (same_plane(planes_[i], planes_[j])) {
           const std::uint32_t a = find_root(static_cast<std::uint32_t>(i));
-          const std::uint32_t b = find_root(static_cast<std::uint32_t>(it - first));
+          const std::uint32_t b = find_root(static_cast<std::uint32_t>(j));
           parent_[std::max(a, b)] = std::min(a, b);
         }
       }
@@ -433,8 +431,8 @@ void PlaneMerger::label_and_emit() noexcept {
   }
 }
 
-std::span<const msg::PlanePatch> PlaneMerger::merge(const SectionGrid& sections) noexcept {
-  join_neighbouring_section_planes(sections);
+std::span<const msg::PlanePatch> PlaneMerger::merge() noexcept {
+  join_neighbouring_section_planes();
   build_candidates();
   merge_candidates();
   drop_excluded();

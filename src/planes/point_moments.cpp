@@ -13,7 +13,11 @@ PlaneFit fit_plane(const PointMoments& moments) noexcept {
     return fit;
   }
   fit.centroid_m = moments.mean();
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(moments.covariance());
+  // The closed form for 3 x 3 (Eigen's computeDirect): a plane's smallest eigenvalue is well
+  // apart from the others, where it is as exact as the iterative solver and several times
+  // faster (the merger fits every candidate at every extraction).
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
+  solver.computeDirect(moments.covariance());
   fit.eigenvalues_m2 = solver.eigenvalues().cwiseMax(0.0);
   fit.normal_unit = solver.eigenvectors().col(0).normalized();
   fit.d_m = fit.normal_unit.dot(fit.centroid_m);

@@ -116,21 +116,24 @@ Eigen::Vector3f SectionGrid::centre_m(CellKey section) const noexcept {
   return ((s.cast<double>().array() + half) * block_size_m_).matrix().cast<float>();
 }
 
-std::size_t SectionGrid::later_neighbours(CellKey section,
-                                          std::span<CellKey, 13> out) const noexcept {
-  const auto s = unpack_cell(section);
-  std::size_t count = 0;
-  for (std::int64_t dx = -1; dx <= 1; ++dx) {
-    for (std::int64_t dy = -1; dy <= 1; ++dy) {
-      for (std::int64_t dz = -1; dz <= 1; ++dz) {
-        const CellKey other = pack_cell(s.x() + dx, s.y() + dy, s.z() + dz);
-        if (other > section) {
-          out[count++] = other;
+std::span<const CellKey, 13> SectionGrid::later_neighbour_offsets() noexcept {
+  static constexpr std::array<CellKey, 13> kOffsets = [] {
+    std::array<CellKey, 13> offsets{};
+    std::size_t count = 0;
+    const CellKey origin = pack_cell(0, 0, 0);
+    for (std::int64_t dx = -1; dx <= 1; ++dx) {
+      for (std::int64_t dy = -1; dy <= 1; ++dy) {
+        for (std::int64_t dz = -1; dz <= 1; ++dz) {
+          const CellKey other = pack_cell(dx, dy, dz);
+          if (other > origin) {
+            offsets[count++] = other - origin;
+          }
         }
       }
     }
-  }
-  return count;
+    return offsets;
+  }();
+  return kOffsets;
 }
 
 }  // namespace blockmap::planes

@@ -123,6 +123,8 @@ void VoxelGrid::keep_shapes(Arena& arena) {
   dense_serial_ = arena.allocate_array<std::uint32_t>(max_voxels, "planes.kept_shapes");
   kept_ = arena.allocate_array<KeptShape>(max_voxels, "planes.kept_shapes");
   block_flags_ = arena.allocate_array<std::uint8_t>(block_keys_.size(), "planes.kept_shapes");
+  changed_cells_ = arena.allocate_array<std::uint64_t>(block_keys_.size(), "planes.kept_shapes");
+  stale_cells_ = arena.allocate_array<std::uint64_t>(block_keys_.size(), "planes.kept_shapes");
   kept_coarse_ = arena.allocate_array<CoarseSpread>(block_keys_.size(), "planes.kept_shapes");
   keeping_shapes_ = true;
   clear();
@@ -134,7 +136,8 @@ std::size_t VoxelGrid::shape_cache_bytes(std::size_t max_voxels, std::size_t max
   constexpr std::size_t kAlignment = 64;  // per allocation, at most
   return slots * sizeof(std::uint32_t) +
          max_voxels * (2 * sizeof(std::uint32_t) + sizeof(KeptShape)) +
-         blocks * (sizeof(std::uint8_t) + sizeof(CoarseSpread)) + 6 * kAlignment;
+         blocks * (sizeof(std::uint8_t) + 2 * sizeof(std::uint64_t) + sizeof(CoarseSpread)) +
+         8 * kAlignment;
 }
 
 std::size_t VoxelGrid::arena_bytes(std::size_t max_voxels, std::size_t max_blocks) noexcept {
@@ -246,11 +249,13 @@ bool VoxelGrid::mark_in_block(std::int64_t x, std::int64_t y, std::int64_t z) no
     if (keeping_shapes_) {
       kept_coarse_[block].known = false;
       block_flags_[block] = kChanged;  // all new, and not placed under this key
+      changed_cells_[block] = 0;
+      stale_cells_[block] = 0;
     }
   }
   block_masks_[block] |= std::uint64_t{1} << bit_in_block(x, y, z);
   if (keeping_shapes_) {
-    block_flags_[block] |= kChanged;  // a new cell
+    mark_cell_changed(block, bit_in_block(x, y, z));  // a new cell
   }
   return true;
 }
@@ -264,7 +269,7 @@ void VoxelGrid::unmark_in_block(CellKey key) noexcept {
   }
   block_masks_[block] &= ~(std::uint64_t{1} << bit_in_block(cell.x(), cell.y(), cell.z()));
   if (keeping_shapes_) {
-    block_flags_[block] |= kChanged;
+    mark_cell_changed(block, bit_in_block(cell.x(), cell.y(), cell.z()));  // its neighbours'
   }
   if (block_masks_[block] != 0) {
     return;
@@ -272,17 +277,23 @@ void VoxelGrid::unmark_in_block(CellKey key) noexcept {
   // Empty: its index serves the next new block. The blocks around it are stale now, while
   // its key still says where it was.
   if (keeping_shapes_) {
-    mark_stale_around(block_key);
+    mark_stale_around(block_key, kStale | kAllStale);
   }
   block_index_.erase(block_key);
   free_blocks_[free_block_count_++] = block;
 }
 
-void VoxelGrid::mark_changed(CellKey block_key) noexcept {
-  const std::uint32_t block = block_index_.find(block_key);
+void VoxelGrid::mark_changed(CellKey key) noexcept {
+  const auto cell = unpack_cell(key);
+  const std::uint32_t block = block_index_.find(block_of_cell(cell.x(), cell.y(), cell.z()));
   if (block != CellIndex::kAbsent) {
-    block_flags_[block] |= kChanged;
+    mark_cell_changed(block, bit_in_block(cell.x(), cell.y(), cell.z()));
   }
+}
+
+void VoxelGrid::mark_cell_changed(std::uint32_t block, std::uint32_t bit) noexcept {
+  block_flags_[block] |= kChanged;
+  changed_cells_[block] |= std::uint64_t{1} << bit;
 }
 
 namespace {
@@ -675,8 +686,7 @@ std::uint32_t VoxelGrid::slot_for(const VoxelSums& sums) noexcept {
 
 void VoxelGrid::sums_changed(CellKey key) noexcept {
   if (keeping_shapes_) {
-    const auto cell = unpack_cell(key);
-    mark_changed(block_of_cell(cell.x(), cell.y(), cell.z()));
+    mark_changed(key);
   }
 }
 
@@ -856,6 +866,8 @@ void VoxelGrid::estimate_shapes(const ShapeOptions& options) noexcept {
     // Changed and stale are done with; placed stays until the index serves a new key.
     for (std::size_t block = 0; block < block_count_; ++block) {
       block_flags_[block] &= kPlaced;
+      changed_cells_[block] = 0;
+      stale_cells_[block] = 0;
     }
   }
 }
@@ -888,14 +900,73 @@ void VoxelGrid::take_coarse_look(const ShapeOptions& options, ShapeLimits limits
   }
 }
 
-void VoxelGrid::mark_stale_around(CellKey block_key) noexcept {
+void VoxelGrid::mark_stale_around(CellKey block_key, std::uint8_t flags) noexcept {
   const auto b = unpack_cell(block_key);
   for (std::int64_t dx = -1; dx <= 1; ++dx) {
     for (std::int64_t dy = -1; dy <= 1; ++dy) {
       for (std::int64_t dz = -1; dz <= 1; ++dz) {
         const std::uint32_t near = block_index_.find(pack_cell(b.x() + dx, b.y() + dy, b.z() + dz));
         if (near != CellIndex::kAbsent) {
-          block_flags_[near] |= kStale;
+          block_flags_[near] |= flags;
+        }
+      }
+    }
+  }
+}
+
+namespace {
+
+// A block's cells as a 64-bit mask, bit = x * 16 + y * 4 + z (bit_in_block): the cells at
+// local coordinate 0 and 3 of each axis, and the bit distance of one step along it.
+struct CellAxis {
+  std::uint64_t low;   // coordinate 0
+  std::uint64_t high;  // coordinate 3
+  std::uint32_t step;
+};
+constexpr std::array<CellAxis, 3> kCellAxes{{{0x000000000000FFFFULL, 0xFFFF000000000000ULL, 16},
+                                             {0x000F000F000F000FULL, 0xF000F000F000F000ULL, 4},
+                                             {0x1111111111111111ULL, 0x8888888888888888ULL, 1}}};
+
+// The cells within one step of `cells` along an axis, inside the block.
+std::uint64_t dilated(std::uint64_t cells, const CellAxis& axis) noexcept {
+  return cells | ((cells << axis.step) & ~axis.low) | ((cells >> axis.step) & ~axis.high);
+}
+
+}  // namespace
+
+void VoxelGrid::mark_stale_cells(std::uint32_t block) noexcept {
+  // A fine shape reads the 3 x 3 x 3 cells around its own: each changed cell makes those
+  // stale, here and, at the block's faces, edges and corners, in the blocks beside it. Per
+  // offset to a neighbouring block: the changed cells on that side, moved across (coordinate
+  // 0 to 3 or 3 to 0), then spread one step along the axes the offset keeps.
+  const std::uint64_t changed = changed_cells_[block];
+  const auto b = unpack_cell(block_keys_[block]);
+  for (int dx = -1; dx <= 1; ++dx) {
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dz = -1; dz <= 1; ++dz) {
+        const std::array<int, 3> offset{dx, dy, dz};
+        std::uint64_t cells = changed;
+        for (std::size_t a = 0; a < 3 && cells != 0; ++a) {
+          const CellAxis& axis = kCellAxes[a];
+          const std::uint32_t across = 3 * axis.step;
+          if (offset[a] < 0) {
+            cells = (cells & axis.low) << across;
+          } else if (offset[a] > 0) {
+            cells = (cells & axis.high) >> across;
+          } else {
+            cells = dilated(cells, axis);
+          }
+        }
+        if (cells == 0) {
+          continue;
+        }
+        const std::uint32_t near =
+            dx == 0 && dy == 0 && dz == 0
+                ? block
+                : block_index_.find(pack_cell(b.x() + dx, b.y() + dy, b.z() + dz));
+        if (near != CellIndex::kAbsent) {
+          stale_cells_[near] |= cells;
+          block_flags_[near] |= kStale;  // and its coarse spread
         }
       }
     }
@@ -907,7 +978,9 @@ void VoxelGrid::mark_stale_blocks() noexcept {
     if ((block_flags_[block] & kChanged) == 0) {
       continue;
     }
-    mark_stale_around(block_keys_[block]);
+    // The coarse spread reads the 3 x 3 x 3 blocks around: all of them are stale for it.
+    mark_stale_around(block_keys_[block], kStale);
+    mark_stale_cells(static_cast<std::uint32_t>(block));
   }
 }
 
@@ -917,8 +990,16 @@ void VoxelGrid::estimate_fine_shapes(const ShapeLimits& limits, double& thicknes
   if (keeping_shapes_) {
     mark_stale_blocks();
   }
-  const auto estimated = [this](std::size_t i) {
-    return !keeping_shapes_ || (block_flags_[block_order_[i].block] & kStale) != 0;
+  // The cells of block i whose fine shapes are estimated again (all, without kept shapes).
+  const auto stale_in = [this](std::size_t i) {
+    const std::uint32_t block = block_order_[i].block;
+    if (!keeping_shapes_ || (block_flags_[block] & kAllStale) != 0) {
+      return ~std::uint64_t{0};
+    }
+    return stale_cells_[block];
+  };
+  const auto estimated = [&](std::size_t i) {
+    return (stale_in(i) & live_masks_[block_order_[i].block]) != 0;
   };
   // Pipelined: the neighbourhood of the block kAhead places on is looked up (and its sums
   // fetched) while this block's samples are summed. A block whose shapes are kept needs none.
@@ -941,20 +1022,21 @@ void VoxelGrid::estimate_fine_shapes(const ShapeLimits& limits, double& thicknes
     }
     const BlockRange range = block_range(block_order_[i].block);
     const BlockNeighbourhood& around = ring[i % ring.size()];
-    const bool estimate = estimated(i);
+    const std::uint64_t stale = stale_in(i);
+    // The block's samples are its live cells in bit order.
+    std::uint64_t cells = live_masks_[block_order_[i].block];
     float thickness_sum = 0.0f;  // per block in float, over the cloud in double
-    for (std::uint32_t id = range.first; id < range.first + range.count; ++id) {
+    for (std::uint32_t id = range.first; id < range.first + range.count; ++id, cells &= cells - 1) {
       Voxel& voxel = voxels_[id];
       float thickness_m = 0.0f;
       KeptShape* kept = keeping_shapes_ ? &kept_[dense_serial_[id]] : nullptr;
-      if (estimate) {
+      if ((stale & cells & (~cells + 1)) != 0) {
         thickness_m = estimate_shape(voxel, around, limits);
         if (kept != nullptr) {
           *kept = KeptShape{voxel.axis, thickness_m, voxel.shape, true};
         }
       } else {
-        // A new sample marks its block changed, so a kept block's shapes were all estimated
-        // before (and this block's neighbourhood was not looked up).
+        // A new sample marks its cell changed, so a kept shape was estimated before.
         BLOCKMAP_CHECK_MSG(kept->valid, "a kept block holds a sample never estimated");
         voxel.shape = kept->shape;
         voxel.axis = kept->axis;

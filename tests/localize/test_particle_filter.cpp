@@ -27,20 +27,38 @@ LocalizeConfig behaviour_config() {
 }
 
 TEST(ParticleFilter, FindsItsHeadingAndTracksTheLoopBetterThanGps) {
-  const DriveOptions options;
-  FilterFixture fixture;
-  const RunErrors errors = run(fixture.filter, drive(options), options);
-  std::printf("filter %.2f m, smoothed %.2f m, gps %.2f m, heading %.2f deg, smoothed %.2f deg\n",
-              errors.filter_rms_m, errors.smoothed_rms_m, errors.gps_rms_m, errors.heading_rms_deg,
-              errors.smoothed_heading_rms_deg);
+  // Three drives (their own seeds for the drive and the filter): one drive's figure moves by
+  // a tenth with the filter's random draws, the mean of three by much less.
+  constexpr int kDrives = 3;
+  RunErrors mean;
+  std::uint64_t recoveries = 0;
+  for (int seed = 1; seed <= kDrives; ++seed) {
+    DriveOptions options;
+    options.seed = static_cast<std::uint64_t>(seed);
+    LocalizeConfig config;
+    config.seed = static_cast<std::uint64_t>(seed);
+    FilterFixture fixture(config);
+    const RunErrors errors = run(fixture.filter, drive(options), options);
+    std::printf(
+        "drive %d: filter %.2f m, smoothed %.2f m, gps %.2f m, heading %.2f deg, smoothed %.2f "
+        "deg\n",
+        seed, errors.filter_rms_m, errors.smoothed_rms_m, errors.gps_rms_m, errors.heading_rms_deg,
+        errors.smoothed_heading_rms_deg);
+    mean.filter_rms_m += errors.filter_rms_m / kDrives;
+    mean.smoothed_rms_m += errors.smoothed_rms_m / kDrives;
+    mean.gps_rms_m += errors.gps_rms_m / kDrives;
+    mean.heading_rms_deg += errors.heading_rms_deg / kDrives;
+    mean.smoothed_heading_rms_deg += errors.smoothed_heading_rms_deg / kDrives;
+    recoveries += fixture.filter.counters().recoveries;
+  }
   // The targets for the smoothed trajectory: at most half the GPS error, 2 deg of
-  // heading. (Over ten drives the mean is half the GPS error: bench_localize, docs/localize.md.)
-  EXPECT_LT(errors.filter_rms_m, errors.gps_rms_m);
-  EXPECT_LT(errors.smoothed_rms_m, errors.filter_rms_m);
-  EXPECT_LT(errors.smoothed_rms_m, 0.5 * errors.gps_rms_m);
-  EXPECT_LT(errors.smoothed_heading_rms_deg, 2.0);
-  EXPECT_LT(errors.heading_rms_deg, 3.0);
-  EXPECT_EQ(fixture.filter.counters().recoveries, 0u);
+  // heading. (Over ten drives: bench_localize, docs/localize.md.)
+  EXPECT_LT(mean.filter_rms_m, mean.gps_rms_m);
+  EXPECT_LT(mean.smoothed_rms_m, mean.filter_rms_m);
+  EXPECT_LT(mean.smoothed_rms_m, 0.5 * mean.gps_rms_m);
+  EXPECT_LT(mean.smoothed_heading_rms_deg, 2.0);
+  EXPECT_LT(mean.heading_rms_deg, 3.0);
+  EXPECT_EQ(recoveries, 0u);
 }
 
 TEST(ParticleFilter, LearnsTheGyroscopeBias) {
@@ -87,8 +105,10 @@ TEST(ParticleFilter, LeavesOutAMultipathJumpAndStartsOverWhenGpsDisagreesForLong
   jump.stamp_ns = before.stamp_ns;
   jump.east_m = before.x_m + 40.0;
   EXPECT_EQ(filter.update(jump), GpsOutcome::kRejected);
+  // (The odometry since the last base sample's batch is applied to the particles at a fix,
+  // with its noise: the estimate moves by that noise, under a millimetre, not by the jump.)
   EXPECT_LT(std::hypot(filter.estimate().x_m - before.x_m, filter.estimate().y_m - before.y_m),
-            1e-9);
+            0.005);
   // Every fix 50 m off from now on: after max_rejected_fixes the filter starts over there.
   GpsOutcome last = GpsOutcome::kUsed;
   std::uint32_t rejected = 0;

@@ -615,6 +615,36 @@ TEST(VoxelGrid, KeptShapesAreTheShapesOfAGridBuiltAfresh) {
   expect_grid_built_afresh(kept, after, kSamples);
 }
 
+// A fine shape reads the 3 x 3 x 3 samples around it, so a changed sample makes exactly those
+// stale, across block borders: one at a corner of four 0.8 m blocks of a floor has its eight
+// neighbours in all four estimated again, and nothing else.
+TEST(VoxelGrid, AChangedSampleAtABlockCornerRefreshesItsNeighboursInEveryBlockAndNoOthers) {
+  constexpr std::size_t kSamples = std::size_t{1} << 12;
+  std::mt19937 random(17);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  std::vector<Eigen::Vector3f> points;
+  for (int i = 0; i < 40000; ++i) {
+    points.emplace_back(4.0f * unit(random), 4.0f * unit(random), 0.05f + 0.01f * unit(random));
+  }
+  const std::vector<VoxelSums> before = samples_of(points);
+  // A post in the sample at cells (7, 7, 0): local (3, 3, 0) of block (1, 1, 0).
+  for (int i = 0; i < 200; ++i) {
+    points.emplace_back(1.5f, 1.5f, 0.01f + 0.18f * unit(random));
+  }
+  const std::vector<VoxelSums> after = samples_of(points);
+
+  Arena arena(VoxelGrid::arena_bytes(kSamples) + VoxelGrid::shape_cache_bytes(kSamples));
+  VoxelGrid kept;
+  start_kept_grid(kept, arena, before, kSamples);
+  for (const VoxelSums& sums : after) {
+    kept.set_sums(sums);  // only the post's sample differs
+  }
+  kept.compact();
+  kept.estimate_shapes(ShapeOptions{});
+  EXPECT_EQ(kept.shapes_reused(), kept.size() - 9);
+  expect_grid_built_afresh(kept, after, kSamples);
+}
+
 // Erased samples (a tile left the mapper's window): the grid that kept its shapes and let the
 // samples go, then took new ones into the freed slots and blocks, holds exactly what a grid
 // built afresh from the samples that remain holds, shape for shape.

@@ -88,9 +88,10 @@ class ParticleFilter {
   // A GPS fix. Fixes must not be older than the last odometry (the pipeline orders them).
   GpsOutcome update(const GpsObservation& fix) noexcept;
 
-  // The weighted mean of the particles now.
+  // The weighted mean of the particles now (odometry not yet applied to them included).
   [[nodiscard]] Pose2 estimate() const noexcept;
-  // The spread of the particles' positions (the square root of the covariance's trace).
+  // The spread of the particles' positions (the square root of the covariance's trace), as
+  // of the last batch of odometry applied to them (at most a history step old).
   [[nodiscard]] double position_spread_m() const noexcept;
   // The mean distance scale and yaw-rate bias the particles carry.
   [[nodiscard]] double mean_distance_scale() const noexcept;
@@ -147,6 +148,11 @@ class ParticleFilter {
     double fast_fast = 0.0;
   };
   [[nodiscard]] double gaussian() noexcept;
+  // Odometry waits in a batch (pending_) and moves the particles once per batch: the motion
+  // loop is most of the filter's cost, and 100 Hz of base samples need not run it 100 times a
+  // second. A batch ends before a fix, before a history step and when it is long.
+  void accumulate_motion(double dt_s, double distance_m, double yaw_rate_radps) noexcept;
+  void apply_motion() noexcept;
   void start_at(const GpsObservation& fix, double sigma_m, bool keep_heading) noexcept;
   [[nodiscard]] double fix_sigma_m(const GpsObservation& fix) const noexcept;
   [[nodiscard]] FixError fix_error(const GpsObservation& fix) const noexcept;
@@ -223,6 +229,18 @@ class ParticleFilter {
   std::span<Pose2> final_;  // finalized poses waiting to be drained (a ring)
   std::size_t final_first_ = 0;
   std::size_t final_count_ = 0;
+
+  struct PendingMotion {
+    double distance_m = 0.0;  // summed fore/aft distance
+    double turn_rad = 0.0;    // summed gyroscope turn (rate x time)
+    double dt_s = 0.0;
+    double distance_variance_m2 = 0.0;  // the steps' noise variances, summed
+    double yaw_variance_rad2 = 0.0;
+    double scale_variance = 0.0;
+    double bias_variance_radps2 = 0.0;
+    std::uint32_t steps = 0;
+  };
+  PendingMotion pending_;
 
   bool started_ = false;
   bool have_stamp_ = false;

@@ -50,6 +50,7 @@ class HoughAccumulator {
       remember(cell);
     }
     votes_[cell] += weight;
+    has_negative_votes_ = has_negative_votes_ || weight < 0.0f;
   }
 
   [[nodiscard]] float votes(std::uint32_t row, std::uint32_t d_bin) const noexcept {
@@ -88,6 +89,7 @@ class HoughAccumulator {
   std::span<float> votes_;
   std::span<std::uint32_t> touched_;
   std::size_t touched_count_ = 0;
+  bool has_negative_votes_ = false;  // since clear(): find_peaks() cannot bound windows then
 };
 
 }  // namespace blockmap::planes

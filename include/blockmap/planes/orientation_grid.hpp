@@ -84,6 +84,14 @@ class OrientationGrid {
   void visit_band_cells_near(std::uint32_t band, float phi_rad, float half_width_rad,
                              Visit&& visit) const;
   void build_neighbours();
+  // searched_height_: whether a normal whose |z| falls in a bin may lie in a searched cell,
+  // so that the line kernels skip the rest of each circle without finding its cells.
+  static constexpr std::size_t kHeightBins = 1024;
+  void mark_searched_heights(Arena& arena);
+  [[nodiscard]] bool may_be_searched(const Eigen::Vector3f& n) const noexcept {
+    const auto bin = static_cast<std::size_t>(std::abs(n.z()) * static_cast<float>(kHeightBins));
+    return searched_height_[std::min(bin, kHeightBins - 1)] != 0;
+  }
   void build_kernels(Arena& arena, float kernel_rad, Contents contents);
 
   std::uint32_t band_count_ = 0;  // bands 0 (the pole) .. band_count_ - 1 (the equator)
@@ -99,6 +107,7 @@ class OrientationGrid {
   std::span<std::uint32_t> surface_first_;  // per cell, into flat_ (one past the end too)
   std::span<std::uint32_t> line_first_;
   std::span<std::uint32_t> flat_;
+  std::span<std::uint8_t> searched_height_;
 };
 
 // ---- templates ----
@@ -194,6 +203,9 @@ void OrientationGrid::visit_rows_perpendicular_to(const Eigen::Vector3f& directi
   for (std::uint32_t i = 0; i < steps; ++i) {
     const float a = kPi * static_cast<float>(i) / static_cast<float>(steps);
     const Eigen::Vector3f n = std::cos(a) * u + std::sin(a) * v;
+    if (!may_be_searched(n)) {
+      continue;  // a part of the circle far from every searched row
+    }
     const std::uint32_t cell = cell_of(n);
     if (cell == first_cell || std::find(recent.begin(), recent.end(), cell) != recent.end()) {
       continue;

@@ -70,7 +70,7 @@ class PlaneMerger {
   [[nodiscard]] PlaneFit fit_of(const PointMoments& moments) const noexcept;
 
   // Merges, labels and numbers the planes (largest first).
-  std::span<const msg::PlanePatch> merge(const SectionGrid& sections) noexcept;
+  std::span<const msg::PlanePatch> merge() noexcept;
 
   // The moments of the points behind each plane of the last merge(), in its order.
   [[nodiscard]] std::span<const PointMoments> plane_moments() const noexcept {
@@ -98,7 +98,7 @@ class PlaneMerger {
   };
 
   std::uint32_t find_root(std::uint32_t i) noexcept;
-  void join_neighbouring_section_planes(const SectionGrid& sections) noexcept;
+  void join_neighbouring_section_planes() noexcept;
   void build_candidates() noexcept;
   // Polygon of `points` (3D, on or near the plane of `fit`) into `candidate`.
   void set_polygon(Candidate& candidate, std::span<const Eigen::Vector3d> points) noexcept;

@@ -42,10 +42,11 @@ class SectionGrid {
   std::size_t gather(const VoxelGrid& grid, std::span<const std::uint32_t> blocks,
                      std::span<std::uint32_t> out) noexcept;
   [[nodiscard]] Eigen::Vector3f centre_m(CellKey section) const noexcept;
-  // The sections that share a face, edge or corner with this one and come later in key
-  // order (each neighbouring pair once).
-  [[nodiscard]] std::size_t later_neighbours(CellKey section,
-                                             std::span<CellKey, 13> out) const noexcept;
+  // The sections that share a face, edge or corner with one and come later in key order
+  // (each neighbouring pair once) are the section's key plus these offsets: the packed
+  // coordinates have room, so an offset never carries into the next field. In the order
+  // dx, dy, dz from -1 to 1.
+  [[nodiscard]] static std::span<const CellKey, 13> later_neighbour_offsets() noexcept;
   [[nodiscard]] const Counters& counters() const noexcept { return counters_; }
   [[nodiscard]] std::size_t memory_bytes() const noexcept {
     return blocks_.size_bytes() + sections_.size_bytes() + section_first_.size_bytes() +

@@ -270,7 +270,8 @@ class VoxelGrid {
            block_first_.size_bytes() + block_order_.size_bytes() + centred_sums_.size_bytes() +
            block_sums_.size_bytes() + block_summed_.size_bytes() + free_blocks_.size_bytes() +
            serial_of_slot_.size_bytes() + free_serials_.size_bytes() + dense_serial_.size_bytes() +
-           kept_.size_bytes() + block_flags_.size_bytes() + kept_coarse_.size_bytes();
+           kept_.size_bytes() + block_flags_.size_bytes() + changed_cells_.size_bytes() +
+           stale_cells_.size_bytes() + kept_coarse_.size_bytes();
   }
   // Bytes init() takes from the arena for `max_voxels`.
   [[nodiscard]] static std::size_t arena_bytes(std::size_t max_voxels,
@@ -341,8 +342,8 @@ class VoxelGrid {
   // With kept shapes: the blocks within one block of a changed block are marked stale.
   void mark_stale_blocks() noexcept;
   // The block with this key and the 26 around it (those that exist) are stale.
-  void mark_stale_around(CellKey block_key) noexcept;
-  void mark_changed(CellKey block_key) noexcept;
+  void mark_stale_around(CellKey block_key, std::uint8_t flags) noexcept;
+  void mark_changed(CellKey key) noexcept;  // a sample's sums
   // The slot for sums.key, created when new; kAbsent, its points counted as dropped, when
   // the key is out of range or the grid full.
   [[nodiscard]] std::uint32_t slot_for(const VoxelSums& sums) noexcept;
@@ -411,7 +412,8 @@ class VoxelGrid {
   std::size_t free_block_count_ = 0;
   // Kept shapes (keep_shapes()): each voxel's serial (given at creation, taken back by
   // erase(); compact() does not change it), by table slot and by dense id; the fine shape of
-  // each serial; per block, kChanged and kStale.
+  // each serial; per block, kChanged, kStale and kAllStale, and which of its cells changed
+  // and which need their fine shape estimated again.
   struct KeptShape {
     Eigen::Vector3f axis = Eigen::Vector3f::UnitZ();
     float thickness_m = 0.0f;
@@ -419,7 +421,10 @@ class VoxelGrid {
     bool valid = false;
   };
   static constexpr std::uint8_t kChanged = 1;
+  // A block within one block of a change: its coarse spread is estimated again.
   static constexpr std::uint8_t kStale = 2;
+  // Every fine shape of the block is estimated again (a block next to it was emptied).
+  static constexpr std::uint8_t kAllStale = 8;
   // In block_order_ under its present key: the next compact() keeps its place, and moves its
   // samples as they are unless it changed (kept until the block's index serves a new key).
   static constexpr std::uint8_t kPlaced = 4;
@@ -431,6 +436,14 @@ class VoxelGrid {
   std::span<std::uint32_t> dense_serial_;
   std::span<KeptShape> kept_;
   std::span<std::uint8_t> block_flags_;
+  // Per block, bit_in_block order: the cells whose sums changed, and the cells whose
+  // neighbourhood holds one of those (their fine shapes are estimated again).
+  std::span<std::uint64_t> changed_cells_;
+  std::span<std::uint64_t> stale_cells_;
+  void mark_cell_changed(std::uint32_t block, std::uint32_t bit) noexcept;
+  // stale_cells_ from changed_cells_: the 3 x 3 x 3 cells around each change, across block
+  // borders.
+  void mark_stale_cells(std::uint32_t block) noexcept;
   std::span<CoarseSpread> kept_coarse_;  // per block, with kept shapes
   std::uint64_t shapes_reused_ = 0;
   std::size_t block_count_ = 0;
