@@ -101,12 +101,12 @@ void OrientationGrid::mark_searched_heights(Arena& arena) {
     // One band either way of the range: float rounding in cell_of.
     const std::uint32_t first = band_at(std::acos(std::min(z_high, 1.0)));
     const std::uint32_t last = band_at(std::acos(z_low));
-    std::uint8_t any = 0;
+    bool any = false;
     for (std::uint32_t band = first == 0 ? 0 : first - 1;
          band <= std::min(last + 1, band_count_ - 1); ++band) {
-      any |= cell_row_[band_first_cell_[band]] >= 0 ? 1 : 0;
+      any = any || cell_row_[band_first_cell_[band]] >= 0;
     }
-    searched_height_[bin] = any;
+    searched_height_[bin] = any ? 1 : 0;
   }
 }
 

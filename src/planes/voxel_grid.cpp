@@ -936,7 +936,8 @@ std::uint64_t dilated(std::uint64_t cells, const CellAxis& axis) noexcept {
 
 void VoxelGrid::mark_stale_cells(std::uint32_t block) noexcept {
   // A fine shape reads the 3 x 3 x 3 cells around its own: each changed cell makes those
-  // stale, here and, at the block's faces, edges and corners, in the blocks beside it. Per
+  // stale, here and, at the block's faces, edges and corners, in the blocks beside it (and
+  // the coarse spreads of all 27 blocks). Per
   // offset to a neighbouring block: the changed cells on that side, moved across (coordinate
   // 0 to 3 or 3 to 0), then spread one step along the axes the offset keeps.
   const std::uint64_t changed = changed_cells_[block];
@@ -957,16 +958,14 @@ void VoxelGrid::mark_stale_cells(std::uint32_t block) noexcept {
             cells = dilated(cells, axis);
           }
         }
-        if (cells == 0) {
-          continue;
-        }
         const std::uint32_t near =
             dx == 0 && dy == 0 && dz == 0
                 ? block
                 : block_index_.find(pack_cell(b.x() + dx, b.y() + dy, b.z() + dz));
         if (near != CellIndex::kAbsent) {
           stale_cells_[near] |= cells;
-          block_flags_[near] |= kStale;  // and its coarse spread
+          // The coarse spread reads the 3 x 3 x 3 blocks around: any change among them.
+          block_flags_[near] |= kStale;
         }
       }
     }
@@ -978,8 +977,6 @@ void VoxelGrid::mark_stale_blocks() noexcept {
     if ((block_flags_[block] & kChanged) == 0) {
       continue;
     }
-    // The coarse spread reads the 3 x 3 x 3 blocks around: all of them are stale for it.
-    mark_stale_around(block_keys_[block], kStale);
     mark_stale_cells(static_cast<std::uint32_t>(block));
   }
 }

@@ -623,6 +623,7 @@ TEST(VoxelGrid, AChangedSampleAtABlockCornerRefreshesItsNeighboursInEveryBlockAn
   std::mt19937 random(17);
   std::uniform_real_distribution<float> unit(0.0f, 1.0f);
   std::vector<Eigen::Vector3f> points;
+  points.reserve(40200);
   for (int i = 0; i < 40000; ++i) {
     points.emplace_back(4.0f * unit(random), 4.0f * unit(random), 0.05f + 0.01f * unit(random));
   }
