@@ -124,7 +124,6 @@ void VoxelGrid::keep_shapes(Arena& arena) {
   kept_ = arena.allocate_array<KeptShape>(max_voxels, "planes.kept_shapes");
   block_flags_ = arena.allocate_array<std::uint8_t>(block_keys_.size(), "planes.kept_shapes");
   changed_cells_ = arena.allocate_array<std::uint64_t>(block_keys_.size(), "planes.kept_shapes");
-  stale_cells_ = arena.allocate_array<std::uint64_t>(block_keys_.size(), "planes.kept_shapes");
   kept_coarse_ = arena.allocate_array<CoarseSpread>(block_keys_.size(), "planes.kept_shapes");
   keeping_shapes_ = true;
   clear();
@@ -136,8 +135,8 @@ std::size_t VoxelGrid::shape_cache_bytes(std::size_t max_voxels, std::size_t max
   constexpr std::size_t kAlignment = 64;  // per allocation, at most
   return slots * sizeof(std::uint32_t) +
          max_voxels * (2 * sizeof(std::uint32_t) + sizeof(KeptShape)) +
-         blocks * (sizeof(std::uint8_t) + 2 * sizeof(std::uint64_t) + sizeof(CoarseSpread)) +
-         8 * kAlignment;
+         blocks * (sizeof(std::uint8_t) + sizeof(std::uint64_t) + sizeof(CoarseSpread)) +
+         7 * kAlignment;
 }
 
 std::size_t VoxelGrid::arena_bytes(std::size_t max_voxels, std::size_t max_blocks) noexcept {
@@ -250,7 +249,6 @@ bool VoxelGrid::mark_in_block(std::int64_t x, std::int64_t y, std::int64_t z) no
       kept_coarse_[block].known = false;
       block_flags_[block] = kChanged;  // all new, and not placed under this key
       changed_cells_[block] = 0;
-      stale_cells_[block] = 0;
     }
   }
   block_masks_[block] |= std::uint64_t{1} << bit_in_block(x, y, z);
@@ -832,6 +830,7 @@ void VoxelGrid::load_neighbourhood(std::int64_t bx, std::int64_t by, std::int64_
       for (std::int64_t dz = -1; dz <= 1; ++dz, ++k) {
         out.live_masks[k] = 0;
         out.first[k] = 0;
+        out.changed[k] = 0;
         if ((live & kCellsFacing[k]) == 0) {
           continue;
         }
@@ -839,6 +838,7 @@ void VoxelGrid::load_neighbourhood(std::int64_t bx, std::int64_t by, std::int64_
         if (block != CellIndex::kAbsent) {
           out.live_masks[k] = live_masks_[block];
           out.first[k] = block_first_[block];
+          out.changed[k] = keeping_shapes_ ? changed_cells_[block] : 0;
           // The shape pass reads these sums a block or two later.
           __builtin_prefetch(&centred_sums_[block_first_[block]]);
         }
@@ -867,7 +867,6 @@ void VoxelGrid::estimate_shapes(const ShapeOptions& options) noexcept {
     for (std::size_t block = 0; block < block_count_; ++block) {
       block_flags_[block] &= kPlaced;
       changed_cells_[block] = 0;
-      stale_cells_[block] = 0;
     }
   }
 }
@@ -934,42 +933,36 @@ std::uint64_t dilated(std::uint64_t cells, const CellAxis& axis) noexcept {
 
 }  // namespace
 
-void VoxelGrid::mark_stale_cells(std::uint32_t block) noexcept {
-  // A fine shape reads the 3 x 3 x 3 cells around its own: each changed cell makes those
-  // stale, here and, at the block's faces, edges and corners, in the blocks beside it (and
-  // the coarse spreads of all 27 blocks). Per
-  // offset to a neighbouring block: the changed cells on that side, moved across (coordinate
-  // 0 to 3 or 3 to 0), then spread one step along the axes the offset keeps.
-  const std::uint64_t changed = changed_cells_[block];
-  const auto b = unpack_cell(block_keys_[block]);
+std::uint64_t VoxelGrid::stale_cells(const BlockNeighbourhood& around) noexcept {
+  // A fine shape reads the 3 x 3 x 3 cells around its own: a cell is stale when a changed
+  // cell lies among those, in this block or, at its faces, edges and corners, in the blocks
+  // beside it. Per neighbouring block: its changed cells on this side, moved across
+  // (coordinate 3 to 0 or 0 to 3), then spread one step along the axes the offset keeps.
+  // (Neighbours that no live cell here faces were not looked up: their changes reach no
+  // sample of this block.)
+  std::uint64_t stale = 0;
+  std::size_t k = 0;
   for (int dx = -1; dx <= 1; ++dx) {
     for (int dy = -1; dy <= 1; ++dy) {
-      for (int dz = -1; dz <= 1; ++dz) {
+      for (int dz = -1; dz <= 1; ++dz, ++k) {
         const std::array<int, 3> offset{dx, dy, dz};
-        std::uint64_t cells = changed;
+        std::uint64_t cells = around.changed[k];
         for (std::size_t a = 0; a < 3 && cells != 0; ++a) {
           const CellAxis& axis = kCellAxes[a];
           const std::uint32_t across = 3 * axis.step;
           if (offset[a] < 0) {
-            cells = (cells & axis.low) << across;
-          } else if (offset[a] > 0) {
             cells = (cells & axis.high) >> across;
+          } else if (offset[a] > 0) {
+            cells = (cells & axis.low) << across;
           } else {
             cells = dilated(cells, axis);
           }
         }
-        const std::uint32_t near =
-            dx == 0 && dy == 0 && dz == 0
-                ? block
-                : block_index_.find(pack_cell(b.x() + dx, b.y() + dy, b.z() + dz));
-        if (near != CellIndex::kAbsent) {
-          stale_cells_[near] |= cells;
-          // The coarse spread reads the 3 x 3 x 3 blocks around: any change among them.
-          block_flags_[near] |= kStale;
-        }
+        stale |= cells;
       }
     }
   }
+  return stale;
 }
 
 void VoxelGrid::mark_stale_blocks() noexcept {
@@ -977,7 +970,8 @@ void VoxelGrid::mark_stale_blocks() noexcept {
     if ((block_flags_[block] & kChanged) == 0) {
       continue;
     }
-    mark_stale_cells(static_cast<std::uint32_t>(block));
+    // The blocks around may hold stale cells, and their coarse spreads read this block.
+    mark_stale_around(block_keys_[block], kStale);
   }
 }
 
@@ -987,28 +981,33 @@ void VoxelGrid::estimate_fine_shapes(const ShapeLimits& limits, double& thicknes
   if (keeping_shapes_) {
     mark_stale_blocks();
   }
-  // The cells of block i whose fine shapes are estimated again (all, without kept shapes).
-  const auto stale_in = [this](std::size_t i) {
-    const std::uint32_t block = block_order_[i].block;
-    if (!keeping_shapes_ || (block_flags_[block] & kAllStale) != 0) {
-      return ~std::uint64_t{0};
-    }
-    return stale_cells_[block];
-  };
-  const auto estimated = [&](std::size_t i) {
-    return (stale_in(i) & live_masks_[block_order_[i].block]) != 0;
+  // Blocks that may hold stale cells (all of them without kept shapes): their neighbourhood
+  // is looked up, and tells which cells are stale.
+  const auto may_be_stale = [this](std::size_t i) {
+    return !keeping_shapes_ || (block_flags_[block_order_[i].block] & (kStale | kAllStale)) != 0;
   };
   // Pipelined: the neighbourhood of the block kAhead places on is looked up (and its sums
   // fetched) while this block's samples are summed. A block whose shapes are kept needs none.
   constexpr std::size_t kAhead = 2;
   std::array<BlockNeighbourhood, kAhead + 1> ring;
   const auto look_up = [&](std::size_t i) {
-    if (!estimated(i)) {
+    if (!may_be_stale(i)) {
       return;
     }
     const std::uint32_t block = block_order_[i].block;
     const auto b = unpack_cell(block_keys_[block]);
     load_neighbourhood(b.x(), b.y(), b.z(), live_masks_[block], ring[i % ring.size()]);
+  };
+  // The cells of block i whose fine shapes are estimated again.
+  const auto stale_in = [&](std::size_t i) {
+    const std::uint32_t block = block_order_[i].block;
+    if (!may_be_stale(i)) {
+      return std::uint64_t{0};
+    }
+    if (!keeping_shapes_ || (block_flags_[block] & kAllStale) != 0) {
+      return ~std::uint64_t{0};
+    }
+    return stale_cells(ring[i % ring.size()]);
   };
   for (std::size_t i = 0; i < std::min(kAhead, block_count_); ++i) {
     look_up(i);

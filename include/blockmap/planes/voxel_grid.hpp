@@ -271,7 +271,7 @@ class VoxelGrid {
            block_sums_.size_bytes() + block_summed_.size_bytes() + free_blocks_.size_bytes() +
            serial_of_slot_.size_bytes() + free_serials_.size_bytes() + dense_serial_.size_bytes() +
            kept_.size_bytes() + block_flags_.size_bytes() + changed_cells_.size_bytes() +
-           stale_cells_.size_bytes() + kept_coarse_.size_bytes();
+           kept_coarse_.size_bytes();
   }
   // Bytes init() takes from the arena for `max_voxels`.
   [[nodiscard]] static std::size_t arena_bytes(std::size_t max_voxels,
@@ -327,6 +327,7 @@ class VoxelGrid {
   struct BlockNeighbourhood {
     std::array<std::uint64_t, 27> live_masks{};
     std::array<std::uint32_t, 27> first{};
+    std::array<std::uint64_t, 27> changed{};  // with kept shapes: changed_cells_
   };
   void load_neighbourhood(std::int64_t bx, std::int64_t by, std::int64_t bz, std::uint64_t live,
                           BlockNeighbourhood& out) const noexcept;
@@ -436,14 +437,12 @@ class VoxelGrid {
   std::span<std::uint32_t> dense_serial_;
   std::span<KeptShape> kept_;
   std::span<std::uint8_t> block_flags_;
-  // Per block, bit_in_block order: the cells whose sums changed, and the cells whose
-  // neighbourhood holds one of those (their fine shapes are estimated again).
+  // Per block, bit_in_block order: the cells whose sums changed since the last shapes.
   std::span<std::uint64_t> changed_cells_;
-  std::span<std::uint64_t> stale_cells_;
   void mark_cell_changed(std::uint32_t block, std::uint32_t bit) noexcept;
-  // stale_cells_ from changed_cells_: the 3 x 3 x 3 cells around each change, across block
-  // borders.
-  void mark_stale_cells(std::uint32_t block) noexcept;
+  // The cells of a block whose 3 x 3 x 3 neighbourhood holds a changed cell (their fine
+  // shapes are estimated again), from its loaded neighbourhood, across block borders.
+  [[nodiscard]] static std::uint64_t stale_cells(const BlockNeighbourhood& around) noexcept;
   std::span<CoarseSpread> kept_coarse_;  // per block, with kept shapes
   std::uint64_t shapes_reused_ = 0;
   std::size_t block_count_ = 0;
