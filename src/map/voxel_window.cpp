@@ -47,6 +47,7 @@ void VoxelWindow::init(Arena& arena, const VoxelWindowConfig& config) {
   const std::string problem = validate(config);
   BLOCKMAP_CHECK_MSG(problem.empty(), "an invalid window configuration reached init()");
   config_ = config;
+  last_key_ = planes::kNoCell;
   inverse_voxel_m_ = static_cast<float>(1.0 / config.voxel_size_m);
   voxels_per_tile_ = whole(config.tile_size_m / config.voxel_size_m);
   half_tiles_ = static_cast<std::int64_t>(config.tiles_across / 2);
@@ -128,6 +129,7 @@ void VoxelWindow::recentre(const Eigen::Vector2d& position_m, EvictionSink& sink
 }
 
 void VoxelWindow::evict(TileSlot& slot, EvictionSink& sink) noexcept {
+  last_key_ = planes::kNoCell;  // its sample may be one of these
   const Eigen::AlignedBox2d bounds = tile_bounds_m(slot.tile_x, slot.tile_y);
   std::size_t gathered = 0;
   std::uint32_t i = slot.first;
@@ -212,12 +214,18 @@ void VoxelWindow::add_point(const Eigen::Vector3f& point_m) noexcept {
     slot.tile_x = tile_x;
     slot.tile_y = tile_y;
   }
-  const std::uint32_t sample = find_or_create(planes::pack_cell(x, y, z), slot);
-  if (sample == kNone) {
-    ++counters_.points_dropped_full;
-    return;
+  // Neighbouring beams of a scan often land in one voxel: the last one found is kept.
+  const planes::CellKey key = planes::pack_cell(x, y, z);
+  if (key != last_key_) {
+    const std::uint32_t found = find_or_create(key, slot);
+    if (found == kNone) {
+      ++counters_.points_dropped_full;
+      return;
+    }
+    last_key_ = key;
+    last_sample_ = found;
   }
-  // The detector's layout: sums about the voxel's centre, in metres.
+  const std::uint32_t sample = last_sample_;
   // The detector's layout: sums about the voxel's centre (computed as VoxelGrid::centre_m
   // does), in metres.
   const Eigen::Vector3f centre_m =

@@ -161,6 +161,9 @@ class VoxelWindow {
   std::span<std::uint32_t> touched_;
   std::size_t touched_count_ = 0;
   std::span<std::uint8_t> touched_flag_;
+  // The voxel of the last point added, and its sample (kNoCell after an eviction).
+  planes::CellKey last_key_ = planes::kNoCell;
+  std::uint32_t last_sample_ = kNone;
   VoxelWindowCounters counters_;
 };
 
