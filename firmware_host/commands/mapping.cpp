@@ -102,7 +102,9 @@ std::string MappingSession::finish(const std::optional<hal::GeodeticPoint>& orig
       std::span<const localize::Pose3>(poses_.data(), mapper_.smoothed_poses(poses_)));
   wall_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
   std::string problem = outputs_.finish(mapper_.final_planes(), mapper_.buildings(), origin,
-                                        mapper_.counters().points, wall_s_);
+                                        mapper_.counters().points, wall_s_,
+                                        cloud_ ? std::span<const Eigen::Vector3f>(cloud_->points())
+                                               : std::span<const Eigen::Vector3f>{});
   if (problem.empty() && cloud_) {
     hal::cloud::write_ply(outputs_.dir() / "cloud.ply", cloud_->points());
   }

@@ -100,7 +100,8 @@ int run(const RunOptions& options, std::ostream& err) {
   }
   session->report(err, simulated->simulation().elapsed_s());
   err << "run: open " << (std::filesystem::path(options.mapping.out) / "map.wrl").string()
-      << " in a VRML viewer (view3dscene, MeshLab), or read planes.json\n";
+      << " in a VRML viewer (view3dscene, MeshLab), top_view.svg in a browser, or read "
+         "planes.json\n";
   return kExitOk;
 }
 
@@ -111,12 +112,13 @@ Command add_run_command(CLI::App& app) {
       "run",
       "The onboard mapper; with no robot attached, on the built-in simulated city block "
       "(usc_block): writes planes.jsonl, planes.bin, buildings.jsonl, trajectory.csv, planes.json, "
-      "buildings.json, map.wrl, footprints.geojson");
+      "buildings.json, map.wrl, top_view.svg, footprints.geojson");
   auto options = std::make_shared<RunOptions>();
   options->mapping.out = "out/run";
   command->add_option("--config", options->mapping.config,
-                      "a TOML file: [planes] the detector, [buildings] the fitter, [window] and "
-                      "[projection] the map; [robot], [devices] and [daemon] the robot to map "
+                      "a TOML file: [planes] the detector, [buildings] the fitter, [window], "
+                      "[projection], [mapper] and [free_space] the map; [robot], [devices] and "
+                      "[daemon] the robot to map "
                       "from (config/README.md)");
   command->add_option("--out", options->mapping.out, "the folder to write into")
       ->capture_default_str();

@@ -115,7 +115,8 @@ nlohmann::json footprints_geojson(std::span<const buildings::Building> buildings
 
 void write_buildings_picture(std::ostream& out, std::span<const Eigen::Vector3f> points_m,
                              std::span<const msg::PlanePatch> planes,
-                             std::span<const buildings::Building> buildings) {
+                             std::span<const buildings::Building> buildings,
+                             std::span<const localize::Pose3> path) {
   Eigen::Vector2d low = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
   Eigen::Vector2d high = -low;
   const auto grow = [&](const Eigen::Vector2d& p) {
@@ -129,6 +130,9 @@ void write_buildings_picture(std::ostream& out, std::span<const Eigen::Vector3f>
     for (std::size_t i = 0; i < plane.polygon_size; ++i) {
       grow(plane.polygon_m[i].head<2>());
     }
+  }
+  for (const localize::Pose3& pose : path) {
+    grow(Eigen::Vector2d(pose.x_m, pose.y_m));
   }
   for (const buildings::Building& building : buildings) {
     for (std::size_t w = 0; w < building.wall_count; ++w) {
@@ -158,6 +162,16 @@ void write_buildings_picture(std::ostream& out, std::span<const Eigen::Vector3f>
     out << dot;
   }
   out << "</g>\n";
+  if (path.size() >= 2) {
+    out << R"(<polyline fill="none" stroke="#2a9d3a" stroke-width="1.5" points=")";
+    for (std::size_t k = 0; k < path.size(); ++k) {
+      const Eigen::Vector2d s = view.to_screen(Eigen::Vector2d(path[k].x_m, path[k].y_m));
+      char point[48];
+      std::snprintf(point, sizeof point, "%s%.1f,%.1f", k == 0 ? "" : " ", s.x(), s.y());
+      out << point;
+    }
+    out << "\"/>\n";
+  }
   // The vertical planes, thin red: what the buildings were made from.
   for (const msg::PlanePatch& plane : planes) {
     buildings::WallSegment segment;

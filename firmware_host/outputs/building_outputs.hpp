@@ -11,6 +11,7 @@
 
 #include "blockmap/buildings/building.hpp"
 #include "blockmap/hal/geodesy.hpp"
+#include "blockmap/localize/localizer.hpp"
 #include "blockmap/msg/plane_patch.hpp"
 
 namespace blockmap::cli {
@@ -25,9 +26,11 @@ namespace blockmap::cli {
 [[nodiscard]] nlohmann::json footprints_geojson(std::span<const buildings::Building> buildings,
                                                 const hal::LocalEnuFrame& frame);
 
-// The picture from above; points may be empty (a plane list has none).
+// The picture from above; points may be empty (a plane list has none), and so may the path
+// the robot took (a green line).
 void write_buildings_picture(std::ostream& out, std::span<const Eigen::Vector3f> points_m,
                              std::span<const msg::PlanePatch> planes,
-                             std::span<const buildings::Building> buildings);
+                             std::span<const buildings::Building> buildings,
+                             std::span<const localize::Pose3> path = {});
 
 }  // namespace blockmap::cli

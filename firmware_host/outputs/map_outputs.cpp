@@ -175,7 +175,8 @@ void MapOutputs::thin_path() {
 std::string MapOutputs::finish(std::span<const msg::PlanePatch> planes,
                                std::span<const buildings::Building> buildings,
                                const std::optional<hal::GeodeticPoint>& origin,
-                               std::uint64_t points, double seconds) {
+                               std::uint64_t points, double seconds,
+                               std::span<const Eigen::Vector3f> cloud_m) {
   if (!files_) {
     trajectory_out_->flush();
     return *trajectory_out_ ? std::string() : std::string("writing the trajectory failed");
@@ -196,6 +197,8 @@ std::string MapOutputs::finish(std::span<const msg::PlanePatch> planes,
   buildings_file << buildings_json(buildings).dump(1) << '\n';
   std::ofstream vrml_file(dir_ / "map.wrl");
   write_vrml(vrml_file, sorted, path_, buildings);
+  std::ofstream picture_file(dir_ / "top_view.svg");
+  write_buildings_picture(picture_file, cloud_m, sorted, buildings, path_);
   bool geojson_written = true;
   if (origin) {
     std::ofstream geojson_file(dir_ / "footprints.geojson");
@@ -206,8 +209,8 @@ std::string MapOutputs::finish(std::span<const msg::PlanePatch> planes,
   binary_.flush();
   trajectory_.flush();
   buildings_jsonl_.flush();
-  if (!planes_file || !buildings_file || !vrml_file || !geojson_written || !jsonl_ || !binary_ ||
-      !trajectory_ || !buildings_jsonl_) {
+  if (!planes_file || !buildings_file || !vrml_file || !picture_file || !geojson_written ||
+      !jsonl_ || !binary_ || !trajectory_ || !buildings_jsonl_) {
     return "writing into " + dir_.string() + " failed (disk full?)";
   }
   return {};

@@ -42,12 +42,14 @@ class MapOutputs {
   void write_poses(std::span<const localize::Pose3> poses);
   // A line of buildings.jsonl when they differ from the last line written.
   void write_buildings(TimestampNs stamp_ns, std::span<const buildings::Building> buildings);
-  // planes.json, buildings.json, map.wrl and (with an origin) footprints.geojson; flushes
+  // planes.json, buildings.json, map.wrl, top_view.svg (the picture from above, over
+  // `cloud_m` when the cloud was kept) and (with an origin) footprints.geojson; flushes
   // everything. Empty when it worked, otherwise why not.
   [[nodiscard]] std::string finish(std::span<const msg::PlanePatch> planes,
                                    std::span<const buildings::Building> buildings,
                                    const std::optional<hal::GeodeticPoint>& origin,
-                                   std::uint64_t points, double seconds);
+                                   std::uint64_t points, double seconds,
+                                   std::span<const Eigen::Vector3f> cloud_m = {});
 
   [[nodiscard]] std::uint64_t updates() const noexcept { return updates_; }
   [[nodiscard]] std::uint64_t binary_bytes() const noexcept { return binary_bytes_; }

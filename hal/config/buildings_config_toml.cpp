@@ -31,8 +31,16 @@ buildings::BuildingsConfig parse_buildings_config(std::string_view text, std::st
   c.t_penalty_m = t.number_or("t_penalty_m", c.t_penalty_m);
   c.min_virtual_gap_m = t.number_or("min_virtual_gap_m", c.min_virtual_gap_m);
   c.min_explained_share = t.number_or("min_explained_share", c.min_explained_share);
+  c.min_block_area_m2 = t.number_or("min_block_area_m2", c.min_block_area_m2);
+  c.min_block_wall_m = t.number_or("min_block_wall_m", c.min_block_wall_m);
+  c.block_wall_reach_m = t.number_or("block_wall_reach_m", c.block_wall_reach_m);
+  c.block_column_m = t.number_or("block_column_m", c.block_column_m);
+  c.block_step_m = t.number_or("block_step_m", c.block_step_m);
+  c.block_min_band_m = t.number_or("block_min_band_m", c.block_min_band_m);
+  c.block_snap_m = t.number_or("block_snap_m", c.block_snap_m);
   c.max_walls = t.capacity_or("max_walls", c.max_walls);
   c.max_buildings = t.capacity_or("max_buildings", c.max_buildings);
+  c.max_blocks = t.capacity_or("max_blocks", c.max_blocks);
   t.finish();
   const std::string problem = buildings::validate(c);
   if (!problem.empty()) {

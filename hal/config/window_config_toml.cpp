@@ -38,6 +38,23 @@ pipeline::MapperConfig parse_window_config(std::string_view text, std::string_vi
     }
     t.finish();
   }
+  if (auto table = root.table("free_space")) {
+    TableReader& t = *table;
+    // Where the level lasers saw through: blocks the robot drove around are traced in it.
+    const std::int64_t tiles = t.integer_or("tiles_across", c.free_space.tiles_across);
+    if (tiles < 0 || tiles > 64) {
+      t.fail("tiles_across", "must be from 0 (off) to 64 (tiles of 32 cells)");
+    }
+    c.free_space.tiles_across = static_cast<std::uint32_t>(tiles);
+    c.free_space.cell_size_m =
+        t.positive("cell_size_m", t.number_or("cell_size_m", c.free_space.cell_size_m));
+    c.free_space.stop_short_m =
+        t.non_negative("stop_short_m", t.number_or("stop_short_m", c.free_space.stop_short_m));
+    t.finish();
+    if (const std::string problem = map::validate(c.free_space); !problem.empty()) {
+      throw ConfigError(std::string(source) + ": " + problem);
+    }
+  }
   if (auto table = root.table("mapper")) {
     TableReader& t = *table;
     // Seconds of scan time between two plane extractions: the plane list's update period,

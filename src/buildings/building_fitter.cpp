@@ -173,8 +173,14 @@ bool wall_segment_of(const msg::PlanePatch& plane, WallSegment& segment) noexcep
   return hi > lo;
 }
 
-void BuildingFitter::init(Arena& arena, const BuildingsConfig& config) {
+void BuildingFitter::init(Arena& arena, const BuildingsConfig& config,
+                          std::size_t free_space_cells) {
   config_ = config;
+  tracer_.init(arena, config, free_space_cells);
+  if (free_space_cells > 0) {
+    block_members_ = arena.allocate_array<std::uint32_t>(config.max_walls, "buildings.blocks");
+    side_walls_ = arena.allocate_array<SideWall>(config.max_walls, "buildings.blocks");
+  }
   segments_ = arena.allocate_array<WallSegment>(config.max_walls, "buildings.fitter");
   parent_ = arena.allocate_array<std::uint32_t>(config.max_walls, "buildings.fitter");
   order_ = arena.allocate_array<std::uint32_t>(config.max_walls, "buildings.fitter");
@@ -217,9 +223,15 @@ std::size_t BuildingFitter::past_set_bytes(const BuildingsConfig& config) noexce
          padded(remembered * kMaxBuildingWalls * sizeof(PastPlane));
 }
 
-std::size_t BuildingFitter::arena_bytes(const BuildingsConfig& config) noexcept {
+std::size_t BuildingFitter::arena_bytes(const BuildingsConfig& config,
+                                        std::size_t free_space_cells) noexcept {
   const std::size_t remembered = 2 * config.max_buildings;
-  return padded(config.max_walls * sizeof(WallSegment)) +
+  const std::size_t blocks = free_space_cells == 0
+                                 ? 0
+                                 : BlockTracer::arena_bytes(config, free_space_cells) +
+                                       padded(config.max_walls * sizeof(std::uint32_t)) +
+                                       padded(config.max_walls * sizeof(SideWall));
+  return blocks + padded(config.max_walls * sizeof(WallSegment)) +
          2 * padded(config.max_walls * sizeof(std::uint32_t)) +
          padded(config.max_walls * sizeof(Piece)) + padded(config.max_walls * sizeof(Roof)) +
          padded(config.max_buildings * sizeof(Building)) + 2 * past_set_bytes(config) +
@@ -227,9 +239,11 @@ std::size_t BuildingFitter::arena_bytes(const BuildingsConfig& config) noexcept 
 }
 
 std::size_t BuildingFitter::memory_bytes() const noexcept {
-  return sizeof(*this) + segments_.size_bytes() + parent_.size_bytes() + order_.size_bytes() +
-         pieces_.size_bytes() + roofs_.size_bytes() + buildings_.size_bytes() +
-         past_taken_.size_bytes() + past_votes_.size_bytes() + past_remap_.size_bytes() +
+  return sizeof(*this) + tracer_.memory_bytes() + block_members_.size_bytes() +
+         side_walls_.size_bytes() + segments_.size_bytes() + parent_.size_bytes() +
+         order_.size_bytes() + pieces_.size_bytes() + roofs_.size_bytes() +
+         buildings_.size_bytes() + past_taken_.size_bytes() + past_votes_.size_bytes() +
+         past_remap_.size_bytes() +
          std::accumulate(past_sets_.begin(), past_sets_.end(), std::size_t{0},
                          [](std::size_t sum, const PastSet& set) {
                            return sum + set.ids.size_bytes() + set.extents.size_bytes() +
@@ -246,6 +260,7 @@ std::span<const Building> BuildingFitter::fit(std::span<const msg::PlanePatch> p
 }
 
 void BuildingFitter::begin() noexcept {
+  has_free_space_ = false;
   segment_count_ = 0;
   roof_count_ = 0;
   building_count_ = 0;
@@ -299,6 +314,8 @@ std::span<const Building> BuildingFitter::finish() noexcept {
     }
     first = last;
   }
+  // A block the robot drove around is one footprint, whatever its walls made.
+  add_traced_blocks();
   // 4. Each building keeps its identity from the last fit.
   assign_ids();
   remember_buildings();
@@ -942,17 +959,7 @@ void BuildingFitter::set_height(Building& building) const noexcept {
 
 bool BuildingFitter::fit_group(std::span<const std::uint32_t> members,
                                Building& building) noexcept {
-  // The building's axis: the length-weighted mean direction of its walls modulo 90 degrees
-  // (angles times four), so that walls and the walls across them agree.
-  double sum_cos = 0.0;
-  double sum_sin = 0.0;
-  for (const std::uint32_t index : members) {
-    const Eigen::Vector2d d = segments_[index].p1_m - segments_[index].p0_m;
-    const double angle = std::atan2(d.y(), d.x());
-    sum_cos += d.norm() * std::cos(4.0 * angle);
-    sum_sin += d.norm() * std::sin(4.0 * angle);
-  }
-  const double axis_rad = 0.25 * std::atan2(sum_sin, sum_cos);
+  const double axis_rad = dominant_axis(members);
   to_pieces(members, axis_rad);
   merge_parallel_pieces();
 
@@ -1017,6 +1024,24 @@ bool BuildingFitter::fit_group(std::span<const std::uint32_t> members,
     return true;
   }
   emit_walls(model, axis_rad, building);
+  set_confidence(building);
+  return true;
+}
+
+double BuildingFitter::dominant_axis(std::span<const std::uint32_t> members) const noexcept {
+  // Angles times four, so that walls and the walls across them agree.
+  double sum_cos = 0.0;
+  double sum_sin = 0.0;
+  for (const std::uint32_t index : members) {
+    const Eigen::Vector2d d = segments_[index].p1_m - segments_[index].p0_m;
+    const double angle = std::atan2(d.y(), d.x());
+    sum_cos += d.norm() * std::cos(4.0 * angle);
+    sum_sin += d.norm() * std::sin(4.0 * angle);
+  }
+  return 0.25 * std::atan2(sum_sin, sum_cos);
+}
+
+void BuildingFitter::set_confidence(Building& building) noexcept {
   double perimeter_m = 0.0;
   double seen_m = 0.0;
   for (std::size_t w = 0; w < building.wall_count; ++w) {
@@ -1025,6 +1050,163 @@ bool BuildingFitter::fit_group(std::span<const std::uint32_t> members,
     seen_m += building.walls[w].is_virtual ? 0.0 : length_m;
   }
   building.confidence = perimeter_m > 0.0 ? seen_m / perimeter_m : 0.0;
+}
+
+namespace {
+
+// A building this much inside a traced block is a part of it.
+constexpr double kPartOfBlockShare = 0.25;
+// A building whose footprint is this much free space is none.
+constexpr double kSeenThroughShare = 0.5;
+
+// The share of `building`'s footprint, sampled every metre, where `test` holds; 0 without a
+// footprint.
+template <class Test>
+double footprint_share(const Building& building, Test&& test) {
+  constexpr double kStepM = 1.0;
+  const std::span<const Eigen::Vector2d> footprint(building.footprint_m.data(),
+                                                   building.footprint_size);
+  if (footprint.size() < 3) {
+    return 0.0;
+  }
+  Eigen::Vector2d low = footprint[0];
+  Eigen::Vector2d high = footprint[0];
+  for (const Eigen::Vector2d& p : footprint) {
+    low = low.cwiseMin(p);
+    high = high.cwiseMax(p);
+  }
+  std::size_t samples = 0;
+  std::size_t held = 0;
+  for (double y = low.y() + 0.5 * kStepM; y < high.y(); y += kStepM) {
+    for (double x = low.x() + 0.5 * kStepM; x < high.x(); x += kStepM) {
+      const Eigen::Vector2d p(x, y);
+      if (planes::inside_polygon(p, footprint)) {
+        ++samples;
+        held += test(p) ? 1U : 0U;
+      }
+    }
+  }
+  return samples > 0 ? static_cast<double>(held) / static_cast<double>(samples) : 0.0;
+}
+
+// The share of `building` inside `block`'s footprint: of its footprint, or of its observed
+// walls' middles when it has none.
+double share_inside(const Building& building, const Building& block) {
+  const std::span<const Eigen::Vector2d> outline(block.footprint_m.data(), block.footprint_size);
+  const auto inside = [&](const Eigen::Vector2d& p) { return planes::inside_polygon(p, outline); };
+  if (building.footprint_size >= 3) {
+    return footprint_share(building, inside);
+  }
+  std::size_t held = 0;
+  for (std::size_t w = 0; w < building.wall_count; ++w) {
+    held += inside(0.5 * (building.walls[w].p0_m + building.walls[w].p1_m)) ? 1U : 0U;
+  }
+  return building.wall_count > 0
+             ? static_cast<double>(held) / static_cast<double>(building.wall_count)
+             : 0.0;
+}
+
+}  // namespace
+
+void BuildingFitter::keep_observed_walls_only(Building& building) noexcept {
+  building.shape = BuildingShape::kUnknown;
+  building.footprint_size = 0;
+  building.confidence = 0.0;
+  std::size_t kept = 0;
+  for (std::size_t w = 0; w < building.wall_count; ++w) {
+    if (!building.walls[w].is_virtual) {
+      building.walls[kept++] = building.walls[w];
+    }
+  }
+  building.wall_count = static_cast<std::uint8_t>(kept);
+}
+
+double BuildingFitter::free_share(const Building& building) const noexcept {
+  return footprint_share(building, [this](const Eigen::Vector2d& p) { return tracer_.is_free(p); });
+}
+
+void BuildingFitter::add_traced_blocks() noexcept {
+  if (!has_free_space_ || block_members_.empty()) {
+    return;
+  }
+  const std::span<const BlockTracer::Block> blocks = tracer_.find_blocks(free_space_);
+  // A footprint that beams went through is no building's: the model closed a box around a
+  // car, a hedge or a row of trees, or put it on the side of a facade that the robot saw
+  // into. Its seen walls stay, without a model ("unknown").
+  for (Building& building : buildings_.first(building_count_)) {
+    if (free_share(building) >= kSeenThroughShare) {
+      ++counters_.buildings_seen_through;
+      keep_observed_walls_only(building);
+    }
+  }
+  for (const BlockTracer::Block& block : blocks) {
+    // The block's walls: those whose middle lies within reach of it.
+    std::size_t member_count = 0;
+    double tall_m = 0.0;
+    for (std::uint32_t s = 0; s < segment_count_; ++s) {
+      const WallSegment& segment = segments_[s];
+      if (tracer_.reaches(block, 0.5 * (segment.p0_m + segment.p1_m), config_.block_wall_reach_m)) {
+        block_members_[member_count++] = s;
+        tall_m += segment.is_tall ? (segment.p1_m - segment.p0_m).norm() : 0.0;
+      }
+    }
+    if (tall_m < config_.min_block_wall_m) {
+      continue;  // ground nobody saw into, with no building along it
+    }
+    Building traced;
+    if (!fit_block(block, block_members_.first(member_count), traced)) {
+      continue;
+    }
+    // The buildings fitted inside the block, or a quarter in it, were parts of it (or
+    // clutter before it that a model stretched into it).
+    std::size_t kept = 0;
+    for (std::size_t b = 0; b < building_count_; ++b) {
+      const Extent e = extent_of(buildings_[b]);
+      const Eigen::Vector2d centre(0.5 * (e.x0 + e.x1), 0.5 * (e.y0 + e.y1));
+      if (!tracer_.reaches(block, centre, config_.block_wall_reach_m) &&
+          share_inside(buildings_[b], traced) < kPartOfBlockShare) {
+        buildings_[kept++] = buildings_[b];
+      }
+    }
+    building_count_ = kept;
+    if (building_count_ == buildings_.size()) {
+      ++counters_.buildings_dropped_full;
+      continue;
+    }
+    buildings_[building_count_++] = traced;
+  }
+}
+
+bool BuildingFitter::fit_block(const BlockTracer::Block& block,
+                               std::span<const std::uint32_t> members,
+                               Building& building) noexcept {
+  const double axis_rad = tracer_.long_axis(block, dominant_axis(members));
+  to_pieces(members, axis_rad);
+  merge_parallel_pieces();
+  for (std::size_t p = 0; p < piece_count_; ++p) {
+    const Piece& piece = pieces_[p];
+    side_walls_[p] = {piece.axis, piece.level, piece.lo, piece.hi};
+  }
+  const BlockTracer::Outline outline =
+      tracer_.outline(block, axis_rad, side_walls_.first(piece_count_));
+  if (outline.size < 4) {
+    return false;
+  }
+  Model model;
+  model.shape = outline.size == 4   ? BuildingShape::kRect
+                : outline.size == 6 ? BuildingShape::kL
+                                    : BuildingShape::kUnknown;
+  model.size = outline.size;
+  std::copy_n(outline.corners.begin(), outline.size, model.corners.begin());
+  building = Building{};
+  building.shape = model.shape;
+  for (std::size_t k = 0; k < model.size; ++k) {
+    building.footprint_m[k] = from_frame(model.corners[k], axis_rad);
+  }
+  building.footprint_size = model.size;
+  set_height(building);
+  emit_walls(model, axis_rad, building);
+  set_confidence(building);
   return true;
 }
 

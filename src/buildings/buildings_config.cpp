@@ -32,6 +32,13 @@ std::string validate(const BuildingsConfig& config) {
       {"l_penalty_m", config.l_penalty_m, true},
       {"t_penalty_m", config.t_penalty_m, true},
       {"min_virtual_gap_m", config.min_virtual_gap_m, true},
+      {"min_block_area_m2", config.min_block_area_m2, false},
+      {"min_block_wall_m", config.min_block_wall_m, true},
+      {"block_wall_reach_m", config.block_wall_reach_m, false},
+      {"block_column_m", config.block_column_m, false},
+      {"block_step_m", config.block_step_m, false},
+      {"block_min_band_m", config.block_min_band_m, true},
+      {"block_snap_m", config.block_snap_m, true},
   };
   for (const auto& length : lengths) {
     if (length.may_be_zero ? !non_negative(length.value) : !positive(length.value)) {
@@ -53,6 +60,9 @@ std::string validate(const BuildingsConfig& config) {
   }
   if (config.max_buildings == 0 || config.max_buildings > 65535) {
     return "max_buildings: must be in [1, 65535]";
+  }
+  if (config.max_blocks == 0 || config.max_blocks > 1000) {
+    return "max_blocks: must be in [1, 1000]";
   }
   return {};
 }

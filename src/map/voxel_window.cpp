@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "blockmap/core/check.hpp"
+#include "blockmap/core/floor_div.hpp"
 #include "blockmap/core/linear_probing.hpp"
 
 namespace blockmap::map {
@@ -11,11 +12,6 @@ namespace {
 
 std::size_t table_slots(std::size_t max_samples) noexcept {
   return std::bit_ceil(std::max<std::size_t>(2 * max_samples, 16));
-}
-
-std::int64_t floor_div(std::int64_t value, std::int64_t divisor) noexcept {
-  const std::int64_t quotient = value / divisor;
-  return (value % divisor != 0 && (value < 0) != (divisor < 0)) ? quotient - 1 : quotient;
 }
 
 // A whole number near `ratio`, or 0 when it is not one.

@@ -32,15 +32,25 @@ localize::Pose3 interpolated(const localize::Pose3& a, const localize::Pose3& b,
 
 // Whether every laser scans a level plane (within scan_plane_angle_deg): its scan plane's
 // normal is the mount's z axis, whose vertical part is cos(roll) cos(pitch).
-bool only_level_lasers(const MapperConfig& config) noexcept {
+bool is_level_laser(const MapperConfig& config, std::size_t laser) noexcept {
   const double cos_level = std::cos(config.scan_plane_angle_deg * std::numbers::pi / 180.0);
+  const map::SensorMount& mount = config.laser_mounts[laser];
+  return std::abs(std::cos(mount.roll_rad) * std::cos(mount.pitch_rad)) >= cos_level;
+}
+
+bool only_level_lasers(const MapperConfig& config) noexcept {
   for (std::size_t laser = 0; laser < config.laser_count; ++laser) {
-    const map::SensorMount& mount = config.laser_mounts[laser];
-    if (std::abs(std::cos(mount.roll_rad) * std::cos(mount.pitch_rad)) < cos_level) {
+    if (!is_level_laser(config, laser)) {
       return false;
     }
   }
   return config.laser_count > 0;
+}
+
+std::size_t free_space_cells(const MapperConfig& config) noexcept {
+  const std::size_t across =
+      std::size_t{config.free_space.tiles_across} * map::FreeSpaceConfig::kCellsPerTile;
+  return config.fit_buildings ? across * across : 0;
 }
 
 // The detector's configuration inside the mapper: it holds what the window holds. With level
@@ -91,6 +101,9 @@ std::string validate(const MapperConfig& config) {
   if (std::string problem = buildings::validate(config.buildings); !problem.empty()) {
     return "buildings: " + problem;
   }
+  if (std::string problem = map::validate(config.free_space); !problem.empty()) {
+    return problem;
+  }
   if (std::abs(config.window.voxel_size_m - config.planes.sample_size_m) > 1e-9) {
     return "mapper: window.voxel_size_m must equal planes.sample_size_m";
   }
@@ -131,7 +144,11 @@ void Mapper::init(Arena& arena, const MapperConfig& config) {
   detector_.init(arena, detector_config(config));
   registry_.init(arena, registry_config(config));
   if (config.fit_buildings) {
-    building_fitter_.init(arena, config.buildings);
+    building_fitter_.init(arena, config.buildings, free_space_cells(config));
+    free_space_.init(arena, config.free_space);
+  }
+  for (std::size_t laser = 0; laser < config.laser_count; ++laser) {
+    carves_free_space_[laser] = free_space_.enabled() && is_level_laser(config, laser);
   }
   pending_ = arena.allocate_array<Pending>(config.reorder_capacity, "mapper.reorder");
   if (config.pose_source == PoseSource::kExternal) {
@@ -157,7 +174,10 @@ std::size_t Mapper::arena_bytes(const MapperConfig& config) noexcept {
          map::VoxelWindow::arena_bytes(config.window) +
          planes::PlaneDetector::arena_budget_bytes(detector_config(config)) +
          map::PlaneRegistry::arena_bytes(registry_config(config)) +
-         (config.fit_buildings ? buildings::BuildingFitter::arena_bytes(config.buildings) : 0) +
+         (config.fit_buildings
+              ? buildings::BuildingFitter::arena_bytes(config.buildings, free_space_cells(config)) +
+                    map::FreeSpaceGrid::arena_bytes(config.free_space)
+              : 0) +
          config.reorder_capacity * sizeof(Pending) +
          (config.pose_source == PoseSource::kExternal ? config.max_external_poses : 0) *
              sizeof(localize::Pose3) +
@@ -415,12 +435,28 @@ void Mapper::project(const QueuedScan& queued, std::span<const std::uint16_t> co
   record_laser_position(queued.laser, first);
   const std::size_t count = projectors_[queued.laser].project(scan, first, last, points_);
   window_.add_points(points_.first(count));
+  if (carves_free_space_[queued.laser]) {
+    carve_free_space(queued.laser, first, points_.first(count));
+  }
   if (point_sink_ != nullptr) {
     point_sink_->on_points(points_.first(count));
   }
   counters_.points += count;
   ++counters_.scans_projected;
   last_scan_ns_ = std::max(last_scan_ns_, last_ns);
+}
+
+void Mapper::carve_free_space(std::size_t laser, const localize::Pose3& pose,
+                              std::span<const Eigen::Vector3f> points_m) noexcept {
+  // The laser's position at the scan's first beam: it moves a few decimetres in a scan, less
+  // than a cell of the grid.
+  Eigen::Vector3d origin_m;
+  Eigen::Vector3d normal;
+  projectors_[laser].scan_plane(pose, origin_m, normal);
+  const Eigen::Vector2d from_m = origin_m.head<2>();
+  for (const Eigen::Vector3f& point : points_m) {
+    free_space_.add_beam(from_m, point.head<2>().cast<double>());
+  }
 }
 
 // --- Planes --------------------------------------------------------------------------------
@@ -459,6 +495,9 @@ void Mapper::restore_planes(std::span<const map::SavedPlane> planes) noexcept {
 
 void Mapper::fit_buildings_to_map() noexcept {
   building_fitter_.begin();
+  if (free_space_.enabled()) {
+    building_fitter_.set_free_space(free_space_.raster());
+  }
   registry_.for_each_plane([this](const msg::PlanePatch& plane) { building_fitter_.add(plane); });
   building_fitter_.finish();
 }

@@ -51,5 +51,24 @@ TEST(MapperBudget, MappingAllocatesNothing) {
   EXPECT_EQ(mapper->counters().scans_refused_full, 0u);
 }
 
+// With the free-space grid on (the blocks a robot drives around are traced in it): every
+// level beam walks the grid, and every refit of the buildings traces its raster, all in
+// memory taken at init.
+TEST(MapperBudget, CarvingFreeSpaceAndTracingBlocksAllocatesNothing) {
+  const testing::RecordedMapperInputs inputs("usc_block", 6.0);
+  ASSERT_TRUE(inputs.started);
+  MapperConfig config = inputs.config;
+  config.free_space.tiles_across = 8;
+  Arena arena(Mapper::arena_bytes(config));
+  auto mapper = std::make_unique<Mapper>();
+  mapper->init(arena, config);
+  arena.seal();
+  const auto map_everything = [&] { inputs.feed(*mapper); };
+  EXPECT_NO_ALLOCATIONS(map_everything());
+  EXPECT_GT(mapper->free_space().counters().beams, 20000u);
+  EXPECT_GT(mapper->free_space().counters().cells_crossed, mapper->free_space().counters().beams);
+  EXPECT_GT(mapper->building_fitter().counters().fits, 3u);
+}
+
 }  // namespace
 }  // namespace blockmap::pipeline

@@ -180,10 +180,13 @@ TEST_F(ReplayMapping, MapsThePlanesWhenTheLogsHaveLasers) {
   const std::string cloud = read_file(out / "cloud.ply");
   const std::string vertices = "element vertex " + std::to_string(list["points"].get<long>());
   EXPECT_NE(cloud.find(vertices), std::string::npos) << cloud.substr(0, 200);
-  for (const char* name : {"planes.jsonl", "planes.bin", "map.wrl", "trajectory.csv",
-                           "buildings.json", "buildings.jsonl", "footprints.geojson"}) {
+  for (const char* name :
+       {"planes.jsonl", "planes.bin", "map.wrl", "trajectory.csv", "buildings.json",
+        "buildings.jsonl", "footprints.geojson", "top_view.svg"}) {
     EXPECT_TRUE(fs::exists(out / name)) << name;
   }
+  // With --cloud the picture draws the points under the rest.
+  EXPECT_NE(read_file(out / "top_view.svg").find("<g fill=\"#9a9a9a\">\n<rect"), std::string::npos);
   fs::remove_all(out);
 }
 

@@ -63,6 +63,21 @@ TEST(RunCommand, MapsTheSimulatedBlockAndWritesEveryOutput) {
   // Buildings (4.2), their stream, and the footprints in WGS-84 at the world's site.
   const nlohmann::json buildings = nlohmann::json::parse(read_file(out / "buildings.json"));
   ASSERT_TRUE(buildings["buildings"].is_array());
+  // The picture from above: the path, the wall planes, a polygon per footprint.
+  const std::string picture = read_file(out / "top_view.svg");
+  EXPECT_EQ(picture.rfind("<svg ", 0), 0u);
+  EXPECT_NE(picture.find("<polyline"), std::string::npos) << "the path";
+  EXPECT_NE(picture.find("</svg>"), std::string::npos);
+  std::size_t footprints_drawn = 0;
+  for (std::size_t at = picture.find("<polygon"); at != std::string::npos;
+       at = picture.find("<polygon", at + 1)) {
+    ++footprints_drawn;
+  }
+  std::size_t footprints_listed = 0;
+  for (const nlohmann::json& building : buildings["buildings"]) {
+    footprints_listed += building["footprint"].size() >= 3 ? 1U : 0U;
+  }
+  EXPECT_EQ(footprints_drawn, footprints_listed);
   const nlohmann::json footprints = nlohmann::json::parse(read_file(out / "footprints.geojson"));
   EXPECT_EQ(footprints["type"], "FeatureCollection");
   EXPECT_TRUE(fs::exists(out / "buildings.jsonl"));
@@ -126,11 +141,13 @@ TEST(RunCommand, TheConfigSetsTheWindowAndTheExtractionsAndEveryMistakeNamesItsK
   const std::string wide =
       config_with("wide.toml",
                   "[window]\ntiles_across = 9\nmax_samples = 40960\n[projection]\n"
-                  "max_range_m = 50.0\n[mapper]\nextract_every_s = 0.25\n");
+                  "max_range_m = 50.0\n[mapper]\nextract_every_s = 0.25\n[free_space]\n"
+                  "tiles_across = 4\ncell_size_m = 1.0\n");
   testing::CliResult result =
       run_cli({"run", "--config", wide, "--duration-s", "2", "--out", (out / "run").string()});
   ASSERT_EQ(result.status, kExitOk) << result.err;
   EXPECT_NE(result.err.find("samples of 40960"), std::string::npos) << result.err;
+  EXPECT_NE(result.err.find("free_space.cells 0.03,"), std::string::npos) << "4 x 4 tiles of 2 KiB";
   // Two seconds at a quarter second each: several extractions, where the default's 1 s
   // makes one or two.
   const std::size_t at = result.err.find(" extractions (");
@@ -148,6 +165,10 @@ TEST(RunCommand, TheConfigSetsTheWindowAndTheExtractionsAndEveryMistakeNamesItsK
       {"[mapper]\nextract_every_s = 0\n", "mapper.extract_every_s: must be > 0"},
       {"[mapper]\nextract_every = 2\n", "mapper.extract_every: unknown key"},
       {"[mapper]\npose_lag_s = 59\n", "mapper.pose_lag_s: map_pose_lag_s must be >= 0 and 2 s"},
+      {"[free_space]\ntiles_across = 65\n", "free_space.tiles_across: must be from 0 (off) to 64"},
+      {"[free_space]\ncell_size_m = 0\n", "free_space.cell_size_m: must be > 0"},
+      {"[free_space]\ncell_size_m = 9\n", "free_space: cell_size_m must be from 0.05 to 5"},
+      {"[free_space]\ncells = 9\n", "free_space.cells: unknown key"},
   };
   for (const auto& [text, expected] : mistakes) {
     result = run_cli({"run", "--config", config_with("bad.toml", text), "--duration-s", "1",

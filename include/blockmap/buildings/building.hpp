@@ -13,7 +13,8 @@
 namespace blockmap::buildings {
 
 // The models a footprint is fitted to, in the order the paper tries them; kUnknown when the
-// walls do not make a corner (nothing to complete from) or no model explains them.
+// walls do not make a corner (nothing to complete from) or no model explains them, or for a
+// block traced from free space (BlockTracer) whose outline is none of the three.
 enum class BuildingShape : std::uint8_t { kRect, kL, kT, kUnknown };
 
 [[nodiscard]] constexpr std::string_view to_string(BuildingShape shape) noexcept {
@@ -30,7 +31,8 @@ enum class BuildingShape : std::uint8_t { kRect, kL, kT, kUnknown };
   return "unknown";
 }
 
-inline constexpr std::size_t kMaxFootprintVertices = 8;  // a T has eight corners
+// A T has eight corners; a traced block (BlockTracer) of four bands sixteen.
+inline constexpr std::size_t kMaxFootprintVertices = 16;
 // Each footprint edge can be cut into observed pieces and virtual gaps between them.
 inline constexpr std::size_t kMaxBuildingWalls = 40;
 
@@ -52,7 +54,8 @@ struct Building {
   // Share of the footprint's perimeter that was observed (0-1): how much of the building is
   // measurement rather than model.
   double confidence = 0.0;
-  // Counter-clockwise; empty for kUnknown (its observed walls are still listed).
+  // Counter-clockwise; empty for kUnknown fitted from walls (its observed walls are still
+  // listed), the traced outline for a traced block.
   std::array<Eigen::Vector2d, kMaxFootprintVertices> footprint_m{};
   std::uint8_t footprint_size = 0;
   std::array<BuildingWall, kMaxBuildingWalls> walls{};

@@ -15,6 +15,7 @@
 
 #include <Eigen/Core>
 
+#include "blockmap/buildings/block_tracer.hpp"
 #include "blockmap/buildings/building.hpp"
 #include "blockmap/buildings/buildings_config.hpp"
 #include "blockmap/core/arena.hpp"
@@ -44,10 +45,12 @@ class BuildingFitter {
     std::uint64_t walls_used = 0;
     std::uint64_t walls_dropped_full = 0;      // more wall segments than max_walls
     std::uint64_t buildings_dropped_full = 0;  // more groups than max_buildings
+    std::uint64_t buildings_seen_through = 0;  // footprints mostly free space: unknown
     std::uint64_t roofs_dropped_full = 0;      // more roof planes than max_walls
   };
 
-  void init(Arena& arena, const BuildingsConfig& config);
+  // free_space_cells: room to trace blocks in free-space rasters of that many cells (0: none).
+  void init(Arena& arena, const BuildingsConfig& config, std::size_t free_space_cells = 0);
 
   // The buildings of these planes (walls make footprints, roofs give heights). The result
   // stays valid until the next fit() or begin(). A building keeps its id from one fit to the
@@ -64,6 +67,14 @@ class BuildingFitter {
   void begin() noexcept;
   void add(const msg::PlanePatch& plane) noexcept;
   std::span<const Building> finish() noexcept;
+  // Where the robot's level laser saw through, for the next finish() (after begin()): blocks
+  // traced in it (BlockTracer) replace the buildings fitted inside them, and a building whose
+  // footprint is mostly ground that beams crossed keeps its seen walls only ("unknown"). The raster
+  // must stay valid until finish() returns.
+  void set_free_space(const map::FreeSpaceRaster& raster) noexcept {
+    free_space_ = raster;
+    has_free_space_ = true;
+  }
   // The buildings of the last finish().
   [[nodiscard]] std::span<const Building> buildings() const noexcept {
     return buildings_.first(building_count_);
@@ -71,7 +82,8 @@ class BuildingFitter {
 
   [[nodiscard]] const Counters& counters() const noexcept { return counters_; }
   [[nodiscard]] std::size_t memory_bytes() const noexcept;
-  [[nodiscard]] static std::size_t arena_bytes(const BuildingsConfig& config) noexcept;
+  [[nodiscard]] static std::size_t arena_bytes(const BuildingsConfig& config,
+                                               std::size_t free_space_cells = 0) noexcept;
   [[nodiscard]] static std::size_t past_set_bytes(const BuildingsConfig& config) noexcept;
 
   // One footprint model in the building's own frame (u along its main axis, v across): a
@@ -128,6 +140,16 @@ class BuildingFitter {
                  const std::array<const Eigen::Vector2d*, 4>& inner_corners) noexcept;
   [[nodiscard]] ModelScore score(const Model& model) const noexcept;
   void emit_walls(const Model& model, double axis_rad, Building& building) const noexcept;
+  static void set_confidence(Building& building) noexcept;
+  // The length-weighted direction of the walls modulo 90 degrees.
+  [[nodiscard]] double dominant_axis(std::span<const std::uint32_t> members) const noexcept;
+  // Blocks traced in the free space, each replacing the buildings inside it.
+  void add_traced_blocks() noexcept;
+  static void keep_observed_walls_only(Building& building) noexcept;
+  // The share of the building's footprint that the free space says beams crossed.
+  [[nodiscard]] double free_share(const Building& building) const noexcept;
+  bool fit_block(const BlockTracer::Block& block, std::span<const std::uint32_t> members,
+                 Building& building) noexcept;
   void set_height(Building& building) const noexcept;
   // Identity across fits (see fit()).
   struct Extent {
@@ -184,6 +206,12 @@ class BuildingFitter {
   std::span<std::uint32_t> past_votes_;
   std::span<std::uint32_t> past_remap_;
   std::uint32_t next_id_ = 1;
+  // Traced blocks (set_free_space()).
+  BlockTracer tracer_;
+  map::FreeSpaceRaster free_space_;
+  bool has_free_space_ = false;
+  std::span<std::uint32_t> block_members_;
+  std::span<SideWall> side_walls_;
 };
 
 }  // namespace blockmap::buildings

@@ -48,9 +48,25 @@ struct BuildingsConfig {
   // otherwise the building stays "unknown" rather than invented.
   double min_explained_share = 0.7;
 
+  // Blocks the robot drove around, traced from where its level laser saw through
+  // (BlockTracer; the mapper's [free_space] grid): a region no beam crossed, ringed by ground
+  // that beams did cross, of at least min_block_area_m2, with at least min_block_wall_m of
+  // walls within block_wall_reach_m of it. Its outline is measured every block_column_m
+  // along it; a change of its extent across by more than block_step_m starts a new band
+  // (bands narrower than block_min_band_m join a neighbour), and a band's side moves onto
+  // walls seen within block_snap_m of it. The block replaces the buildings fitted inside it.
+  double min_block_area_m2 = 400.0;
+  double min_block_wall_m = 20.0;
+  double block_wall_reach_m = 2.0;
+  double block_column_m = 1.0;
+  double block_step_m = 3.0;
+  double block_min_band_m = 6.0;
+  double block_snap_m = 3.0;
+
   // Capacities, taken from the arena at init.
   std::size_t max_walls = 1024;     // wall segments per fit
   std::size_t max_buildings = 128;  // buildings per fit
+  std::size_t max_blocks = 8;       // traced blocks per fit
 };
 
 // Empty when the configuration is usable, otherwise the first problem, naming the key.

@@ -26,6 +26,7 @@
 #include "blockmap/buildings/building_fitter.hpp"
 #include "blockmap/core/arena.hpp"
 #include "blockmap/localize/localizer.hpp"
+#include "blockmap/map/free_space_grid.hpp"
 #include "blockmap/map/plane_registry.hpp"
 #include "blockmap/map/scan_projector.hpp"
 #include "blockmap/map/voxel_window.hpp"
@@ -106,6 +107,11 @@ struct MapperConfig {
   // the estimate improves as data arrives. Capacities for one window's city block.
   bool fit_buildings = true;
   buildings::BuildingsConfig buildings = mapper_buildings_config();
+  // Where the level lasers saw through (map::FreeSpaceGrid), for tracing the blocks the robot
+  // drove around (buildings::BlockTracer). Off by default (tiles_across 0): it costs a grid
+  // walk per beam, and a robot that maps a street rather than drives round blocks gains
+  // nothing from it.
+  map::FreeSpaceConfig free_space;
   double reorder_window_s = 0.25;  // a message this much older than the newest is released
   std::size_t reorder_capacity = 512;
   std::size_t scan_queue_capacity = 128;  // scans wait for the reorder window and the poses
@@ -207,6 +213,7 @@ class Mapper {
   [[nodiscard]] const MapperCounters& counters() const noexcept { return counters_; }
   [[nodiscard]] const map::VoxelWindow& window() const noexcept { return window_; }
   [[nodiscard]] const map::PlaneRegistry& registry() const noexcept { return registry_; }
+  [[nodiscard]] const map::FreeSpaceGrid& free_space() const noexcept { return free_space_; }
   // For snapshots (issue 9): every plane as it would be if the run ended now
   // (PlaneRegistry::save); the map is left as it was.
   [[nodiscard]] std::size_t save_planes(std::span<map::SavedPlane> out) noexcept {
@@ -257,6 +264,9 @@ class Mapper {
   void extract(TimestampNs stamp_ns) noexcept;
   void refit_buildings() noexcept;
   void fit_buildings_to_map() noexcept;
+  // A level laser's beams carve the free-space grid, from its position at `pose`.
+  void carve_free_space(std::size_t laser, const localize::Pose3& pose,
+                        std::span<const Eigen::Vector3f> points_m) noexcept;
 
   // A tile leaving the window: the registry freezes what it held of its planes, and its
   // samples leave the detector's kept grid, which then goes on instead of starting over.
@@ -279,6 +289,8 @@ class Mapper {
   planes::PlaneDetector detector_;
   map::PlaneRegistry registry_;
   buildings::BuildingFitter building_fitter_;
+  map::FreeSpaceGrid free_space_;
+  std::array<bool, kMaxLasers> carves_free_space_{};
 
   std::span<Pending> pending_;  // ordered by time, oldest first
   std::size_t pending_count_ = 0;
