@@ -3,10 +3,12 @@
 // Scored against the world's truth faces, as the planes issue scores the batch detector.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <map>
 #include <memory>
 #include <numbers>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -19,6 +21,7 @@
 #include "blockmap/pipeline/mapper.hpp"
 #include "footprint_score.hpp"
 #include "plane_truth.hpp"
+#include "recorded_mapper_inputs.hpp"
 
 namespace blockmap::pipeline {
 namespace {
@@ -30,6 +33,14 @@ constexpr double kDeterminismDurationS = 8.0;
 constexpr double kDurationS = 0.0;  // the whole path
 constexpr double kDeterminismDurationS = 15.0;
 #endif
+
+// Appends an update as the binary plane stream encodes it; the bytes written.
+std::size_t append_encoded(std::vector<std::uint8_t>& stream, const PlaneUpdate& update) {
+  const std::size_t at = stream.size();
+  stream.resize(at + hal::protocol::plane_stream::record_size(update.changes));
+  return hal::protocol::plane_stream::encode_update(update.stamp_ns, update.changes,
+                                                    std::span<std::uint8_t>(stream).subspan(at));
+}
 
 struct MapperRun {
   std::vector<msg::PlanePatch> final_planes;
@@ -69,13 +80,7 @@ MapperRun map_world(const std::string& world, PoseSource poses, double duration_
   const auto consume = [&] {
     while (mapper->step()) {
       ++run.updates;
-      const PlaneUpdate update = mapper->update();
-      const std::size_t at = run.stream.size();
-      run.stream.resize(at + hal::protocol::plane_stream::record_size(update.changes));
-      EXPECT_GT(
-          hal::protocol::plane_stream::encode_update(
-              update.stamp_ns, update.changes, std::span<std::uint8_t>(run.stream).subspan(at)),
-          0u);
+      EXPECT_GT(append_encoded(run.stream, mapper->update()), 0u);
       for (const msg::PlaneChange& change : mapper->update().changes) {
         const auto previous = run.last_change.find(change.plane.id);
         if (previous != run.last_change.end() &&
@@ -221,6 +226,61 @@ TEST(MapperSim, TheSameRunGivesTheSameStreamWithOrWithoutKeptShapes) {
   EXPECT_EQ(afresh.counters.sections_replayed, 0u);
   ASSERT_EQ(a.stream.size(), afresh.stream.size());
   EXPECT_TRUE(a.stream == afresh.stream) << "the kept shapes changed the stream";
+}
+
+// The same messages in the same order give the same stream however they were batched between
+// two steps: one message a step (blockmap replay), or whatever arrived since the last step (the
+// daemon's pipeline thread, whose batches grow when it falls behind).
+TEST(MapperSim, TheSameMessagesBatchedAnyWayGiveTheSameStream) {
+  testing::RecordedMapperInputs inputs("usc_block", kDeterminismDurationS + 10.0);
+  ASSERT_TRUE(inputs.started);
+  // In time order, as blockmap replay and the daemon's replay source hand them over.
+  using Event = testing::RecordedMapperInputs::Event;
+  const auto stamp_of = [&](const Event& e) -> TimestampNs {
+    switch (e.kind) {
+      case Event::kBase:
+        return inputs.bases[e.index].first.header.stamp_ns;
+      case Event::kFix:
+        return inputs.fixes[e.index].first.stamp_ns;
+      case Event::kPose:
+        return inputs.poses[e.index].stamp_ns;
+      case Event::kScan:
+        return inputs.scans[e.index].second->header.stamp_ns;
+    }
+    return 0;
+  };
+  std::stable_sort(inputs.events.begin(), inputs.events.end(),
+                   [&](const Event& a, const Event& b) { return stamp_of(a) < stamp_of(b); });
+  const auto stream_of = [&](std::uint32_t seed) {
+    Arena arena(Mapper::arena_bytes(inputs.config));
+    auto mapper = std::make_unique<Mapper>();
+    mapper->init(arena, inputs.config);
+    std::vector<std::uint8_t> stream;
+    const auto drain = [&] {
+      while (mapper->step()) {
+        static_cast<void>(append_encoded(stream, mapper->update()));
+      }
+    };
+    // Batches of up to 100 messages, about 0.4 s of them: the daemon's queues from the
+    // devices hold about that much (a bigger batch than the scan queue would refuse scans).
+    std::mt19937 random(seed);
+    std::uniform_int_distribution<int> batch(1, 100);
+    int left = seed == 0 ? 1 : batch(random);
+    inputs.feed(*mapper, [&](bool) {
+      if (--left > 0) {
+        return;  // the batch goes on: no step
+      }
+      left = seed == 0 ? 1 : batch(random);
+      drain();
+    });
+    drain();  // what the end of the input left
+    return stream;
+  };
+  const std::vector<std::uint8_t> one_by_one = stream_of(0);
+  EXPECT_GT(one_by_one.size(), 0u);
+  for (std::uint32_t seed = 1; seed <= 6; ++seed) {
+    EXPECT_TRUE(stream_of(seed) == one_by_one) << "batches of seed " << seed;
+  }
 }
 
 // benning's floor with true poses, below the planes issue's 95 %: three small walls facing
