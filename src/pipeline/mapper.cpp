@@ -279,6 +279,8 @@ void Mapper::apply(const Pending& message) noexcept {
   switch (message.kind) {
     case Kind::kBase:
       ++counters_.base_samples;
+      released_base_ns_ = message.stamp_ns;
+      released_base_any_ = true;
       localizer_.on_base(message.odometry, message.imu);
       break;
     case Kind::kFix:
@@ -535,10 +537,57 @@ void Mapper::give_detector_the_window() noexcept {
   extracted_before_ = true;
 }
 
+void Mapper::drop_scans_before_first_pose() noexcept {
+  TimestampNs horizon_ns = 0;
+  if (pose_horizon(horizon_ns) || scan_count_ == 0) {
+    return;
+  }
+  // No pose yet, with the messages up to released_ns_ applied. The first pose will be no
+  // older than the next one released (external poses), or than the last base sample released
+  // less the pose lag (the filter's: it starts at a fix not yet released, drawn at the base
+  // sample before it, and lagged poses reach back by the lag). A scan that starts before that
+  // can never be drawn: it leaves the queue now, rather than when the first pose comes. A
+  // filter waiting for its first fix would otherwise fill the queue, and how full it got would
+  // depend on how the messages were batched between steps. The extraction periods start from
+  // the first scan, as when it is drawn.
+  TimestampNs first_pose_bound_ns = 0;
+  if (config_.pose_source == PoseSource::kExternal) {
+    if (!released_any_) {
+      return;
+    }
+    first_pose_bound_ns = released_ns_;
+  } else {
+    if (!released_base_any_) {
+      return;
+    }
+    first_pose_bound_ns = released_base_ns_ - ns_from_seconds(config_.localizer.map_pose_lag_s);
+  }
+  TimestampNs oldest_ns = std::numeric_limits<TimestampNs>::max();
+  for (std::size_t i = 0; i < scan_count_; ++i) {
+    oldest_ns = std::min(oldest_ns, scans_[scan_slots_[i]].scan.header.stamp_ns);
+  }
+  if (oldest_ns >= first_pose_bound_ns) {
+    return;
+  }
+  if (!extraction_scheduled_) {
+    extraction_scheduled_ = true;
+    next_extraction_ns_ = oldest_ns + ns_from_seconds(config_.extract_every_s);
+  }
+  for (std::size_t i = 0; i < scan_count_;) {
+    if (scans_[scan_slots_[i]].scan.header.stamp_ns < first_pose_bound_ns) {
+      ++counters_.scans_without_pose;
+      remove_scan(i);
+    } else {
+      ++i;
+    }
+  }
+}
+
 bool Mapper::step() noexcept {
   registry_.begin_update();
   changes_ = {};
   release_due();
+  drop_scans_before_first_pose();
   TimestampNs oldest_waiting_ns = 0;
   for (std::ptrdiff_t next = next_ready_scan(oldest_waiting_ns); next >= 0;
        next = next_ready_scan(oldest_waiting_ns)) {

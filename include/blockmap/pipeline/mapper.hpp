@@ -257,6 +257,9 @@ class Mapper {
   [[nodiscard]] std::span<std::uint16_t> codes_of(std::uint32_t slot) const noexcept {
     return scan_codes_.subspan(slot * config_.max_beams, config_.max_beams);
   }
+  // Before the first pose: the queued scans that start before it (all that the released
+  // messages rule out) are counted without a pose and leave the queue.
+  void drop_scans_before_first_pose() noexcept;
   // Takes the scan at `position` in the queue out (its slot becomes free).
   void remove_scan(std::size_t position) noexcept;
   // The window's samples into the detector: all of them, or those that changed.
@@ -297,6 +300,8 @@ class Mapper {
   TimestampNs newest_in_ns_ = 0;
   TimestampNs released_ns_ = 0;  // everything up to here went to the localizer
   bool released_any_ = false;
+  TimestampNs released_base_ns_ = 0;  // the last base sample that did
+  bool released_base_any_ = false;
 
   std::span<localize::Pose3> poses_;  // kExternal: a ring, oldest at pose_first_
   std::size_t pose_first_ = 0;
