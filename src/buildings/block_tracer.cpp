@@ -300,18 +300,19 @@ void BlockTracer::snap_to_walls(std::span<const SideWall> walls) noexcept {
     band.v_lo = wall_level(0, band.v_lo, band.u0, band.u1);
     band.v_hi = wall_level(0, band.v_hi, band.u0, band.u1);
   }
-  // The ends, and each step between two bands (on the part of it that is a side).
+  // The ends, and each step between two bands: a wall across the outline where one band's
+  // side steps to the other's (on top, at the bottom, or both).
   bands_[0].u0 = wall_level(1, bands_[0].u0, bands_[0].v_lo, bands_[0].v_hi);
   Band& last = bands_[band_count_ - 1];
   last.u1 = wall_level(1, last.u1, last.v_lo, last.v_hi);
   for (std::size_t b = 0; b + 1 < band_count_; ++b) {
     Band& left = bands_[b];
     Band& right = bands_[b + 1];
-    const double step_lo =
-        std::min(std::min(left.v_lo, right.v_lo), std::min(left.v_hi, right.v_hi));
-    const double step_hi =
-        std::max(std::max(left.v_lo, right.v_lo), std::max(left.v_hi, right.v_hi));
-    const double u = wall_level(1, left.u1, step_lo, step_hi);
+    double u =
+        wall_level(1, left.u1, std::min(left.v_hi, right.v_hi), std::max(left.v_hi, right.v_hi));
+    if (u == left.u1) {  // no wall at the top's step (the level comes back as it was)
+      u = wall_level(1, left.u1, std::min(left.v_lo, right.v_lo), std::max(left.v_lo, right.v_lo));
+    }
     if (u > left.u0 && u < right.u1) {
       left.u1 = u;
       right.u0 = u;
