@@ -123,12 +123,9 @@ bool completed(const BuildingMatch& match) {
 }
 
 // partial: north of the street a rect, an L and a T each miss their back (one wall never
-// seen); south of it the same shapes, turned, miss their back and have a hedge in front of
-// their east side (two walls never seen). All but one come out right. The exception is the
-// southern L (truth building 5): its east wall, behind the hedge, gets 473 returns spread
-// thinly over 14 x 9 m, too sparse to be a plane, and the notch's inner wall 513. What is
-// left, the front and the short west wall, is a rectangle 20 x 8 m, and that is what it
-// reports (IoU 0.69 against the L of 20 x 14 m).
+// seen); south of it a rect and a T, turned half way round, and an L turned a quarter, miss
+// their back and have a hedge in front of their east side (two walls never seen). Each comes
+// out with its shape and the IoU.
 TEST(BuildingWorlds, PartialBuildingsAreCompletedFromTheirSeenWalls) {
 #if defined(BLOCKMAP_QUICK_WORLDS)
   GTEST_SKIP() << "the optimized host trees drive partial to the end";
@@ -136,13 +133,8 @@ TEST(BuildingWorlds, PartialBuildingsAreCompletedFromTheirSeenWalls) {
   const std::vector<BuildingMatch> matches = fit_world("partial", 3);
   ASSERT_EQ(matches.size(), 6u);
   for (const BuildingMatch& match : matches) {
-    if (match.truth_id == 5) {
-      EXPECT_EQ(match.shape, "rect");
-      EXPECT_GT(match.iou, 0.6);
-    } else {
-      EXPECT_TRUE(completed(match))
-          << "truth building " << match.truth_id << ": " << match.shape << ", IoU " << match.iou;
-    }
+    EXPECT_TRUE(completed(match)) << "truth building " << match.truth_id << ": " << match.shape
+                                  << ", IoU " << match.iou;
   }
 }
 

@@ -223,7 +223,7 @@ TEST(PlaneRobustness, UscBlockWithPoseNoise) {
   EXPECT_EQ(run.score.faces_reported_twice, 0u);
 }
 
-// partial's floor, below the 90 %: 19 of 28 faces, 19 of 20 planes real. Its ground
+// partial's floor, below the 90 %: 20 of 29 faces, 20 of 21 planes real. Its ground
 // (seen only by the level laser, at grazing range) and the walls glimpsed edge-on are lost
 // (docs/planes.md, Robustness, says why).
 TEST(PlaneRobustness, PartialWithPoseNoise) {
