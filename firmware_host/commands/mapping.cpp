@@ -157,6 +157,13 @@ void MappingSession::report(std::ostream& err, double data_s) const {
         static_cast<unsigned long long>(r.final_dropped));
     err << text;
   }
+  if (c.peak_samples_without_room > 0) {
+    std::snprintf(text, sizeof text,
+                  "mapper: the detector had no room for up to %zu of the window's samples at "
+                  "once (its %zu blocks full: [planes] max_blocks)\n",
+                  c.peak_samples_without_room, planes::block_capacity(mapper_.detector().config()));
+    err << text;
+  }
 }
 
 }  // namespace blockmap::cli

@@ -66,7 +66,8 @@ planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view
   if (const std::int64_t blocks =
           t.integer_or("max_blocks", static_cast<std::int64_t>(c.max_blocks));
       blocks < 0) {
-    t.fail("max_blocks", "must be >= 0 (0: as many as max_samples)");
+    t.fail("max_blocks",
+           "must be >= 0 (0: as many as max_samples; in the mapper a quarter of the window's)");
   } else {
     c.max_blocks = static_cast<std::size_t>(blocks);
   }

@@ -59,7 +59,8 @@ planes::PlanesConfig detector_config(const MapperConfig& config) noexcept {
   planes::PlanesConfig planes = config.planes;
   planes.walls_from_lines = planes.walls_from_lines || only_level_lasers(config);
   planes.max_samples = config.window.max_samples;
-  planes.max_blocks = std::min(planes.max_blocks, planes.max_samples);
+  planes.max_blocks = planes.max_blocks == 0 ? std::max<std::size_t>(planes.max_samples / 4, 1)
+                                             : std::min(planes.max_blocks, planes.max_samples);
   planes.keep_shapes = config.incremental_extraction;
   return planes;
 }
@@ -480,6 +481,9 @@ void Mapper::extract(TimestampNs stamp_ns) noexcept {
   detector_.set_exclusions(std::span(exclusions).first(exclusion_count));
   const std::span<const msg::PlanePatch> planes = detector_.detect();
   counters_.peak_blocks = std::max(counters_.peak_blocks, detector_.voxels().block_count());
+  counters_.peak_samples_without_room =
+      std::max(counters_.peak_samples_without_room,
+               window_.size() - std::min(window_.size(), detector_.voxels().size()));
   counters_.scan_planes_rejected += detector_.stats().planes_excluded;
   counters_.sections_searched += detector_.stats().sections_searched;
   counters_.sections_replayed += detector_.stats().sections_replayed;

@@ -349,6 +349,23 @@ void VoxelGrid::order_blocks(bool keep_placed) noexcept {
   // Blocks in Z-order: a sample's neighbours in the 26 blocks around its own are then mostly
   // near it in memory too (in first-touch order they were anywhere along the path).
   const auto by_code = [](const BlockOrder& a, const BlockOrder& b) { return a.code < b.code; };
+  const auto placed = [this](std::size_t block) { return (block_flags_[block] & kPlaced) != 0; };
+  if (keep_placed) {
+    // The fresh ones are merged in from the back (below) while they wait at the far end of
+    // the array: a placed entry written at a + b - 1 (a placed and b fresh entries left)
+    // lands on a fresh one not yet read when kept + 2 x fresh exceeds the array. Then every
+    // block is sorted afresh and laid out from the table; that happens only with the order
+    // nearly full (VoxelGrid.ABlockOrderNearlyFullLaysOutAsAGridBuiltAfresh).
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < ordered_blocks_; ++i) {
+      kept += placed(block_order_[i].block) ? 1U : 0U;
+    }
+    std::size_t fresh = 0;
+    for (std::size_t block = 0; block < block_count_; ++block) {
+      fresh += placed(block) ? 0U : 1U;
+    }
+    keep_placed = kept + 2 * fresh <= block_order_.size();
+  }
   if (!keep_placed) {
     for (std::size_t block = 0; block < block_count_; ++block) {
       block_order_[block] = BlockOrder{morton_code(block_keys_[block]),
@@ -359,18 +376,17 @@ void VoxelGrid::order_blocks(bool keep_placed) noexcept {
     return;
   }
   // The blocks still placed keep their order (an index that serves a new key is not placed);
-  // the others are sorted at the far end of the array and merged in from the back, which
-  // never overwrites an entry still to be read (kept + fresh <= the array's size).
+  // the others are sorted at the far end of the array and merged in from the back.
   std::size_t kept = 0;
   for (std::size_t i = 0; i < ordered_blocks_; ++i) {
-    if ((block_flags_[block_order_[i].block] & kPlaced) != 0) {
+    if (placed(block_order_[i].block)) {
       block_order_[kept++] = block_order_[i];
     }
   }
   const std::size_t end = block_order_.size();
   std::size_t fresh = 0;
   for (std::size_t block = 0; block < block_count_; ++block) {
-    if ((block_flags_[block] & kPlaced) == 0) {
+    if (!placed(block)) {
       block_order_[end - ++fresh] = BlockOrder{morton_code(block_keys_[block]),
                                                static_cast<std::uint32_t>(block), kNotLaidOut};
     }

@@ -70,5 +70,42 @@ TEST(MapperBudget, CarvingFreeSpaceAndTracingBlocksAllocatesNothing) {
   EXPECT_GT(mapper->building_fitter().counters().fits, 3u);
 }
 
+// The detector's blocks follow the window: a quarter of its samples unless [planes]
+// max_blocks says otherwise (the default window's 81,920 samples get 20,480). A window grown
+// to 15 tiles and 300,000 samples once kept 20,480, filled them, and its samples beyond went
+// silently unused. Too few blocks for the window are reported, not hidden.
+TEST(MapperBudget, TheDetectorsBlocksFollowTheWindowAndTooFewAreReported) {
+  const testing::RecordedMapperInputs inputs("usc_block", 6.0);
+  ASSERT_TRUE(inputs.started);
+  const auto block_capacity_for = [](const MapperConfig& config) {
+    Arena arena(Mapper::arena_bytes(config));
+    auto mapper = std::make_unique<Mapper>();
+    mapper->init(arena, config);
+    return planes::block_capacity(mapper->detector().config());
+  };
+  MapperConfig config = inputs.config;
+  EXPECT_EQ(block_capacity_for(config), config.window.max_samples / 4);
+  config.window.max_samples = 160000;
+  EXPECT_EQ(block_capacity_for(config), 40000u);
+  config.planes.max_blocks = 3000;
+  EXPECT_EQ(block_capacity_for(config), 3000u);
+
+  // 200 blocks for a window that holds thousands: the counter says how many samples missed.
+  config = inputs.config;
+  config.planes.max_blocks = 200;
+  Arena arena(Mapper::arena_bytes(config));
+  auto mapper = std::make_unique<Mapper>();
+  mapper->init(arena, config);
+  inputs.feed(*mapper);
+  EXPECT_LE(mapper->counters().peak_blocks, 200u);
+  EXPECT_GT(mapper->counters().peak_samples_without_room, 1000u);
+  MapperConfig roomy = inputs.config;
+  Arena roomy_arena(Mapper::arena_bytes(roomy));
+  auto roomy_mapper = std::make_unique<Mapper>();
+  roomy_mapper->init(roomy_arena, roomy);
+  inputs.feed(*roomy_mapper);
+  EXPECT_EQ(roomy_mapper->counters().peak_samples_without_room, 0u);
+}
+
 }  // namespace
 }  // namespace blockmap::pipeline

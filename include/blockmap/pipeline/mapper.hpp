@@ -49,11 +49,12 @@ enum class PoseSource : std::uint8_t {
   kExternal,   // on_pose(): a reference trajectory (a simulation's truth, a survey)
 };
 
-// The detector's defaults for a window: 9 samples per occupied block on the simulated
-// worlds, so a quarter of the samples' count in blocks is plenty.
+// The detector's defaults for a window: 6-9 samples per occupied block on the simulated
+// worlds, so a quarter of the window's samples in blocks is plenty. max_blocks = 0 here means
+// that quarter (detector_config), so that a larger window gets the blocks to hold it.
 [[nodiscard]] inline planes::PlanesConfig window_planes_config() noexcept {
   planes::PlanesConfig config;
-  config.max_blocks = 20480;
+  config.max_blocks = 0;
   config.max_patches = 8192;
   config.max_planes = 512;
   return config;
@@ -147,7 +148,10 @@ struct MapperCounters {
   std::uint64_t incremental_extractions = 0;  // of those, with the detector's kept samples
   std::uint64_t sections_searched = 0;        // over all extractions
   std::uint64_t sections_replayed = 0;        // of those, as the extraction before found them
-  std::size_t peak_blocks = 0;             // the detector's occupied blocks, for sizing max_blocks
+  std::size_t peak_blocks = 0;  // the detector's occupied blocks, for sizing max_blocks
+  // The most window samples the detector had no room for at one extraction (its blocks full:
+  // [planes] max_blocks). Their points are in the window, not in the planes.
+  std::size_t peak_samples_without_room = 0;
   std::uint64_t scan_planes_rejected = 0;  // detected planes that were a laser's scan plane
   std::uint64_t points = 0;
 };
