@@ -53,13 +53,21 @@ std::size_t free_space_cells(const MapperConfig& config) noexcept {
   return config.fit_buildings ? across * across : 0;
 }
 
+// The detector's blocks for a window of max_samples: a quarter of them (a city's window fills
+// a block with 6-9 samples), but a block per sample up to 4,096 (a small window's samples are
+// scattered: a window of 4,096 on benning had 900 samples more than a quarter's blocks held).
+std::size_t window_blocks(std::size_t max_samples) noexcept {
+  constexpr std::size_t kSmallWindowBlocks = 4096;
+  return std::max(max_samples / 4, std::min(max_samples, kSmallWindowBlocks));
+}
+
 // The detector's configuration inside the mapper: it holds what the window holds. With level
 // lasers only, a wall is a line in the map: the vertical plane through it.
 planes::PlanesConfig detector_config(const MapperConfig& config) noexcept {
   planes::PlanesConfig planes = config.planes;
   planes.walls_from_lines = planes.walls_from_lines || only_level_lasers(config);
   planes.max_samples = config.window.max_samples;
-  planes.max_blocks = planes.max_blocks == 0 ? std::max<std::size_t>(planes.max_samples / 4, 1)
+  planes.max_blocks = planes.max_blocks == 0 ? window_blocks(planes.max_samples)
                                              : std::min(planes.max_blocks, planes.max_samples);
   planes.keep_shapes = config.incremental_extraction;
   return planes;

@@ -70,10 +70,11 @@ TEST(MapperBudget, CarvingFreeSpaceAndTracingBlocksAllocatesNothing) {
   EXPECT_GT(mapper->building_fitter().counters().fits, 3u);
 }
 
-// The detector's blocks follow the window: a quarter of its samples unless [planes]
-// max_blocks says otherwise (the default window's 81,920 samples get 20,480). A window grown
-// to 15 tiles and 300,000 samples once kept 20,480, filled them, and its samples beyond went
-// silently unused. Too few blocks for the window are reported, not hidden.
+// The detector's blocks follow the window: a quarter of its samples (a block each in a small
+// window, up to 4,096) unless [planes] max_blocks says otherwise (the default window's 81,920
+// samples get 20,480). A window grown to 15 tiles and 300,000 samples once kept 20,480, filled
+// them, and its samples beyond went silently unused. Too few blocks for the window are reported,
+// not hidden.
 TEST(MapperBudget, TheDetectorsBlocksFollowTheWindowAndTooFewAreReported) {
   const testing::RecordedMapperInputs inputs("usc_block", 6.0);
   ASSERT_TRUE(inputs.started);
@@ -89,6 +90,12 @@ TEST(MapperBudget, TheDetectorsBlocksFollowTheWindowAndTooFewAreReported) {
   EXPECT_EQ(block_capacity_for(config), 40000u);
   config.planes.max_blocks = 3000;
   EXPECT_EQ(block_capacity_for(config), 3000u);
+  // A small window's samples are scattered over more blocks: a block each, up to 4,096.
+  config.planes.max_blocks = 0;
+  config.window.max_samples = 4096;
+  EXPECT_EQ(block_capacity_for(config), 4096u);
+  config.window.max_samples = 12000;
+  EXPECT_EQ(block_capacity_for(config), 4096u);
 
   // 200 blocks for a window that holds thousands: the counter says how many samples missed.
   config = inputs.config;
