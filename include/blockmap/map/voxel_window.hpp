@@ -154,8 +154,8 @@ class VoxelWindow {
   std::span<std::uint32_t> next_;  // the chain of a tile's samples, and the free list
   std::uint32_t free_first_ = kNone;
   std::size_t sample_count_ = 0;
-  std::span<TableSlot>
-      table_;  // linear probing, at most two thirds full (table_slots); deletion shifts back
+  // Linear probing, at most two thirds full (table_slots); deletion shifts back.
+  std::span<TableSlot> table_;
   std::uint32_t table_shift_ = 64;
   std::span<planes::VoxelSums> chunk_;  // an evicted tile's samples, gathered for the sink
   // Samples that gained points since forget_touched(): their pool indexes, and a flag each.
