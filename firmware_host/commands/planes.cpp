@@ -104,9 +104,13 @@ CloudPlanes detect_cloud_planes(const hal::cloud::PointCloud& cloud, planes::Pla
         << " no-return skipped)";
   }
   err << ", " << stats.samples << " samples, " << stats.sections << " sections, "
-      << stats.section_planes << " section planes -> " << detected.size() << " planes in "
-      << result.seconds * 1e3 << " ms; surfaces " << std::lround(stats.surface_noise_m * 1e3)
-      << " mm thick (RMS); " << (arena.used_bytes() >> 20) << " MiB\n";
+      << stats.section_planes << " section planes";
+  if (stats.corner_walls > 0) {
+    err << " and " << stats.corner_walls << " walls from the corner look";
+  }
+  err << " -> " << detected.size() << " planes in " << result.seconds * 1e3 << " ms; surfaces "
+      << std::lround(stats.surface_noise_m * 1e3) << " mm thick (RMS); "
+      << (arena.used_bytes() >> 20) << " MiB\n";
   if (stats.overflows > 0) {
     err << "planes: warning: " << stats.overflows
         << " sections, samples or planes beyond a capacity were left out (raise max_* in the "

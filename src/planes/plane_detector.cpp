@@ -8,6 +8,7 @@
 #include <numbers>
 
 #include "blockmap/core/check.hpp"
+#include "blockmap/planes/corner_look.hpp"
 #include "blockmap/planes/polygon.hpp"
 
 namespace blockmap::planes {
@@ -183,7 +184,17 @@ std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
   if (caching_) {
     cache_.end(merger_.section_planes(), merger_.counters().section_planes_dropped_full == 0);
   }
-  const std::span<const msg::PlanePatch> planes = merger_.merge();
+  std::span<const msg::PlanePatch> planes = merger_.merge();
+  // The corner look reads the merged walls; what it finds is merged with the rest. (Walls from
+  // a level laser's traces have no height to look along: not for walls_from_lines.)
+  if (config_.corner_look && !config_.walls_from_lines) {
+    const CornerLookCounters corners =
+        CornerLook(config_).look(planes, stats_.surface_noise_m, voxels_, merger_);
+    stats_.corner_walls = corners.walls_found;
+    if (corners.walls_found > 0) {
+      planes = merger_.merge();
+    }
+  }
   stats_.planes = planes.size();
   stats_.planes_excluded = merger_.counters().planes_excluded;
   stats_.overflows =

@@ -435,6 +435,10 @@ void PlaneMerger::label_and_emit() noexcept {
 }
 
 std::span<const msg::PlanePatch> PlaneMerger::merge() noexcept {
+  // A merge may run again after more section planes came (the corner look): it counts anew.
+  counters_.planes_dropped_full = 0;
+  counters_.stage2_merges = 0;
+  counters_.planes_excluded = 0;
   join_neighbouring_section_planes();
   build_candidates();
   merge_candidates();

@@ -63,6 +63,9 @@ std::string validate(const PlanesConfig& c) {
     return "merge_angle_deg must be in (0, 45), merge_distance_m > 0, merge_gap_m >= 0, "
            "merge_gap_fraction in [0, 1]";
   }
+  if (!(c.corner_reach_m >= kMinCornerReachM && c.corner_reach_m <= kMaxCornerReachM)) {
+    return "corner_reach_m must be in [3, 31.5]";
+  }
   if (!(c.label_tolerance_deg > 0.0 && c.label_tolerance_deg < 45.0)) {
     return "label_tolerance_deg must be in (0, 45)";
   }

@@ -99,9 +99,9 @@ void print_missed_faces(std::span<const hal::sim::TruthFace> faces,
 
 WorldRun detect_in_world(const std::string& world, hal::sim::PoseNoise noise = {},
                          const WorldTilt& world_tilt = {},
-                         const PlanesConfig& config = city_config()) {
+                         const PlanesConfig& config = city_config(), std::uint64_t seed = 3) {
   hal::sim::SimOptions options;
-  options.seed = 3;
+  options.seed = seed;
   options.max_duration_s = kDurationS;
   hal::sim::TruthCloud cloud = hal::sim::simulate_truth_cloud(
       hal::sim::load_world(world), hal::sim::load_robot("paper_rmp"), options, noise);
@@ -205,8 +205,8 @@ TEST(PlaneRobustness, PartialWithSlopedGroundAndLeaningWalls) {
 
 // Pose noise (issue 5 asks for 0.5 deg / 5 cm): every scan of every laser gets its own error,
 // 0.5 deg about each axis and 5 cm along each, so a wall 15 m away is a slab about 0.13 m
-// thick. usc_block meets the issue's recall; benning's figures are this detector's floor, below
-// the issue's 90 %: its far and grazing walls blur to 0.2-0.3 m (docs/planes.md has the table).
+// thick. usc_block and benning meet the issue's recall (benning's glimpsed east and west
+// sides through the corner look); partial does not (docs/planes.md has the table).
 constexpr hal::sim::PoseNoise kScanPoseNoise{0.5 * std::numbers::pi / 180.0, 0.05, 0.0};
 
 // The first minute of usc_block (the sanitized and QEMU trees) has three faces; its ground,
@@ -238,27 +238,51 @@ TEST(PlaneRobustness, UscBlockWithPoseNoiseOnATiltedWorld) {
   EXPECT_EQ(run.score.faces_reported_twice, 0u);
 }
 
-// partial's floor, below the issue's 90 %: 20 of 29 faces, 20 of 21 planes real. Its ground
-// (seen only by the level laser, at grazing range) and the walls glimpsed edge-on are lost
-// (docs/planes.md, Robustness, says why).
+// partial's floor, below the issue's 90 %: 25 of 29 faces, 25 of 26 planes real. Its ground
+// (seen only by the level laser, at grazing range), two sides hidden behind hedges and an L's
+// notch that no wall found leads to are lost (docs/planes.md, Robustness, says why).
 TEST(PlaneRobustness, PartialWithPoseNoise) {
 #if defined(BLOCKMAP_QUICK_WORLDS)
   GTEST_SKIP() << "the optimized host trees drive partial with pose noise";
 #endif
   const WorldRun run = detect_in_world("partial", kScanPoseNoise);
-  EXPECT_GE(run.score.recall(), 0.65);
-  EXPECT_GE(run.score.precision(), 0.90);
+  EXPECT_GE(run.score.recall(), 0.85);
+  EXPECT_GE(run.score.precision(), 0.95);
   EXPECT_EQ(run.score.faces_reported_twice, 0u);
 }
 
+// The issue's 90 % recall: 30 of 32 faces, 30 of 32 planes real. Five of its east and west
+// sides are only glimpsed; the corner look finds three (docs/planes.md, Robustness).
 TEST(PlaneRobustness, BenningWithPoseNoise) {
 #if defined(BLOCKMAP_QUICK_WORLDS)
   GTEST_SKIP() << "the optimized host trees drive benning with pose noise";
 #endif
   const WorldRun run = detect_in_world("benning", kScanPoseNoise);
-  EXPECT_GE(run.score.recall(), 0.80);
+  EXPECT_GE(run.score.recall(), 0.90);
   EXPECT_GE(run.score.precision(), 0.90);
   EXPECT_EQ(run.score.faces_reported_twice, 0u);
+}
+
+// The figures of docs/planes.md over seeds 1-6 (each seed draws the world's clutter, the lasers'
+// noise and the pose errors), with and without the corner look: a few minutes, so on demand
+// (--gtest_also_run_disabled_tests). It holds what every seed reached on 2026-11-24.
+TEST(PlaneRobustness, DISABLED_BenningAndPartialWithPoseNoiseOverSeeds1To6) {
+  for (const bool corner_look : {false, true}) {
+    PlanesConfig config = city_config();
+    config.corner_look = corner_look;
+    for (std::uint64_t seed = 1; seed <= 6; ++seed) {
+      std::printf("corner look %s, seed %llu\n", corner_look ? "on" : "off",
+                  static_cast<unsigned long long>(seed));
+      const WorldRun benning = detect_in_world("benning", kScanPoseNoise, {}, config, seed);
+      const WorldRun partial = detect_in_world("partial", kScanPoseNoise, {}, config, seed);
+      if (corner_look) {
+        EXPECT_GE(benning.score.recall(), 0.90) << "seed " << seed;
+        EXPECT_GE(benning.score.precision(), 0.90) << "seed " << seed;
+        EXPECT_GE(partial.score.recall(), 0.82) << "seed " << seed;
+        EXPECT_GE(partial.score.precision(), 0.85) << "seed " << seed;
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -52,9 +52,13 @@ enum class PoseSource : std::uint8_t {
 // The detector's defaults for a window: 6-9 samples per occupied block on the simulated
 // worlds, so a quarter of the window's samples in blocks is plenty. max_blocks = 0 here means
 // that quarter (detector_config), so that a larger window gets the blocks to hold it.
+// The corner look is off: it found nothing more in the streamed maps measured (true, lagged
+// and filter poses; docs/mapper.md) and took 4-6 % of the benning replay ([planes]
+// corner_look = true turns it on).
 [[nodiscard]] inline planes::PlanesConfig window_planes_config() noexcept {
   planes::PlanesConfig config;
   config.max_blocks = 0;
+  config.corner_look = false;
   config.max_patches = 8192;
   config.max_planes = 512;
   return config;
