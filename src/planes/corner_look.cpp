@@ -214,52 +214,77 @@ PlaneFit fit_square_plane(const PointMoments& moments, const Eigen::Vector3d& wa
 
 }  // namespace
 
-bool CornerLook::try_corner(const Corner& corner, double noise_rmse_m,
-                            std::span<const NearPlane> near, PlaneMerger& merger) noexcept {
+CornerLook::CornerFit CornerLook::fit_corner(const Corner& corner, double noise_rmse_m,
+                                             std::span<const NearPlane> near) noexcept {
   static_assert(kBinM * static_cast<double>(kBins) - kBehindM == kMaxCornerReachM);
   std::array<float, kBins> bins{};
-  Eigen::Vector3d normal = corner.across;
-  double offset_m = 0.0;
-  double band_m = kSearchBandM;
-  double reach_to_m = std::min(corner.reach_m, kBinM * static_cast<double>(kBins) - kBehindM);
-  Gathered gathered;
-  PlaneFit fit;
-  for (std::uint32_t step = 0; step < kFitSteps; ++step) {
-    gathered = gather(corner, normal, offset_m, band_m, reach_to_m, near, -1, bins);
-    if (gathered.moments.weight < kMinPoints) {
-      return false;
+  CornerFit out;
+  out.normal = corner.across;
+  out.band_m = kSearchBandM;
+  out.reach_to_m = std::min(corner.reach_m, kMaxCornerReachM);
+  for (std::uint32_t step = 0; step <= kFitSteps; ++step) {
+    out.gathered =
+        gather(corner, out.normal, out.offset_m, out.band_m, out.reach_to_m, near, -1, bins);
+    if (out.gathered.moments.weight < kMinPoints) {
+      return out;
     }
-    fit = fit_square_plane(gathered.moments, corner.wall_normal, corner.across);
-    if (!fit.valid ||
-        std::abs(fit.normal_unit.dot(corner.across)) < std::cos(kMaxTurnDeg * kDegToRad)) {
-      return false;
+    out.fit = fit_square_plane(out.gathered.moments, corner.wall_normal, corner.across);
+    if (!out.fit.valid ||
+        std::abs(out.fit.normal_unit.dot(corner.across)) < std::cos(kMaxTurnDeg * kDegToRad)) {
+      return out;
     }
-    const double sign = fit.normal_unit.dot(corner.across) < 0.0 ? -1.0 : 1.0;
-    normal = sign * fit.normal_unit;
-    offset_m = sign * fit.d_m;
-    band_m = std::clamp(kBandPerRmse * fit.rmse_m, config_.inlier_distance_m,
-                        config_.max_inlier_distance_m);
+    if (step == kFitSteps) {
+      break;  // the points of the last band, fitted: the answer
+    }
+    const double sign = out.fit.normal_unit.dot(corner.across) < 0.0 ? -1.0 : 1.0;
+    out.normal = sign * out.fit.normal_unit;
+    out.offset_m = sign * out.fit.d_m;
+    out.band_m = std::clamp(kBandPerRmse * out.fit.rmse_m, config_.inlier_distance_m,
+                            config_.max_inlier_distance_m);
     const double end_m = run_end_m<kBins>(bins, kBinM, kBehindM);
     if (end_m < 0.0) {
-      return false;
+      return out;
     }
-    reach_to_m = std::min(reach_to_m, end_m);
+    out.reach_to_m = std::min(out.reach_to_m, end_m);
   }
-  gathered = gather(corner, normal, offset_m, band_m, reach_to_m, near, -1, bins);
-  if (gathered.moments.weight < kMinPoints) {
+  const double length_m = out.gathered.reach_max_m - std::max(out.gathered.reach_min_m, 0.0);
+  out.upright =
+      std::abs(out.fit.normal_unit.z()) <= std::sin(config_.orientation_tolerance_deg * kDegToRad);
+  out.wall_like = length_m >= kMinLengthM && out.fit.rmse_m <= kMaxRmsPerNoise * noise_rmse_m;
+  return out;
+}
+
+bool CornerLook::try_corner(const Corner& corner, double noise_rmse_m,
+                            std::span<const NearPlane> near, PlaneMerger& merger) noexcept {
+  CornerFit found = fit_corner(corner, noise_rmse_m, near);
+  Corner looked = corner;
+  if (found.wall_like) {
+    // What stands in front of a building's side (a hedge, a parked car) stands on the ground:
+    // a fit of both leans, or lies off the side where the side is clear of it. So the upper
+    // half is fitted too, and where the two disagree (the whole fit leans too far, or passes
+    // the upper half's points further off than their own RMS distance), the upper half is
+    // the side.
+    Corner upper = corner;
+    upper.z_min_m = 0.5 * (corner.z_min_m + corner.wall_top_m);
+    const CornerFit top = fit_corner(upper, noise_rmse_m, near);
+    const double apart_m =
+        top.gathered.moments.weight >= kMinPoints
+            ? std::abs(found.fit.normal_unit.dot(top.fit.centroid_m) - found.fit.d_m)
+            : 0.0;
+    if (!found.upright || apart_m > top.fit.rmse_m) {
+      found = top;
+      looked = upper;
+    }
+  }
+  if (!found.wall_like || !found.upright) {
     return false;
   }
-  fit = fit_square_plane(gathered.moments, corner.wall_normal, corner.across);
-  const double length_m = gathered.reach_max_m - std::max(gathered.reach_min_m, 0.0);
-  const bool vertical =
-      std::abs(fit.normal_unit.z()) <= std::sin(config_.orientation_tolerance_deg * kDegToRad);
-  const bool flat_enough = fit.rmse_m <= kMaxRmsPerNoise * noise_rmse_m;
-  if (!fit.valid || !vertical || length_m < kMinLengthM || !flat_enough) {
-    return false;
-  }
-  gathered = gather(corner, normal, offset_m, band_m, reach_to_m, near, kTaken, bins);
+  const PlaneFit& fit = found.fit;
+  std::array<float, kBins> bins{};
+  const Gathered gathered = gather(looked, found.normal, found.offset_m, found.band_m,
+                                   found.reach_to_m, near, kTaken, bins);
   SectionPlane plane;
-  plane.section = kSection;
+  plane.section = kLookSection;
   plane.moments = gathered.moments.shifted(corner.corner_m);
   plane.normal_unit = fit.normal_unit;
   plane.d_m = fit.d_m + fit.normal_unit.dot(corner.corner_m);
@@ -423,6 +448,7 @@ CornerLookCounters CornerLook::look(std::span<const msg::PlanePatch> planes, dou
       corner.wall_normal = wall.normal;
       corner.z_min_m = heights.low + kCornerAboveFootM;
       corner.z_max_m = heights.high + kAboveTopM;
+      corner.wall_top_m = heights.high;
       corner.reach_m = config_.corner_reach_m;
       return corner;
     };

@@ -44,19 +44,29 @@ struct Scene {
       }
     }
   }
-  // A side at x = kEastX from y_from to y_to, seen in `scans` vertical strokes, each moved
-  // across by its own pose error (sigma_m).
-  void glimpsed_side(float y_from, float y_to, int scans, double sigma_m) {
+  // A side at x = kEastX from y_from to y_to, seen in `scans` vertical strokes from z_from up,
+  // each moved across by its own pose error (sigma_m).
+  void glimpsed_side(float y_from, float y_to, int scans, double sigma_m, float z_from = 0.2f) {
     std::normal_distribution<double> error(0.0, sigma_m);
     std::normal_distribution<float> range_noise(0.0f, 0.01f);
     std::uniform_real_distribution<float> along(y_from, y_to);
     for (int scan = 0; scan < scans; ++scan) {
       const auto shift = static_cast<float>(error(random));
       const float y = along(random);
-      for (float z = 0.2f; z <= 6.0f; z += 0.05f) {
+      for (float z = z_from; z <= 6.0f; z += 0.05f) {
         points.emplace_back(static_cast<float>(kEastX) + shift + range_noise(random), y + 0.1f * z,
                             z);
       }
+    }
+  }
+  // A hedge 3 m high along the side, outside it: leaves scattered through 0.8 m.
+  void hedge(int leaves) {
+    std::uniform_real_distribution<float> x(static_cast<float>(kEastX) + 0.4f,
+                                            static_cast<float>(kEastX) + 1.2f);
+    std::uniform_real_distribution<float> y(0.5f, 8.0f);
+    std::uniform_real_distribution<float> z(0.2f, 3.0f);
+    for (int i = 0; i < leaves; ++i) {
+      points.emplace_back(x(random), y(random), z(random));
     }
   }
 };
@@ -136,6 +146,24 @@ TEST(CornerLook, FindsASideGlimpsedThroughPoseErrorsWhereTheFrontEnds) {
   EXPECT_GT(std::abs(side.normal.x()), std::cos(3.0 * kDeg));
   EXPECT_NEAR(std::abs(side.d_m), kEastX, 0.15);
   EXPECT_EQ(side.kind, msg::PlaneKind::kWall);
+}
+
+TEST(CornerLook, FindsASideAboveTheHedgeInFrontOfIt) {
+  // partial's southern L: the side's lower half stands behind a hedge, and a fit of both
+  // leans. The look tries the side's upper half again, clear of it.
+  Scene scene;
+  scene.front_wall();
+  scene.street(-8.0f, -0.2f);
+  scene.glimpsed_side(0.5f, 8.0f, 12, 0.15, 3.2f);
+  scene.hedge(20000);
+  const std::array planes{front_patch(), ground_patch()};
+  const Looked looked = look_at(scene, planes, 0.15);
+  EXPECT_EQ(looked.counters.walls_found, 1u);
+  ASSERT_EQ(looked.planes.size(), 1u);
+  const msg::PlanePatch& side = looked.planes[0];
+  EXPECT_GT(std::abs(side.normal.x()), std::cos(3.0 * kDeg));
+  EXPECT_NEAR(std::abs(side.d_m), kEastX, 0.15);
+  EXPECT_GT(side.centroid_m.z(), 3.0) << "the side above the hedge";
 }
 
 TEST(CornerLook, LooksOnlyIntoTheBuildingNotAlongTheStreet) {

@@ -5,8 +5,9 @@
 // a corner. The look tries the plane through each end of each wall, square to it, into the
 // building (the side of the wall a laser saw nothing behind): it fits the free samples near
 // that plane by least squares, and keeps the fit only when its points say so (enough of
-// them, standing upright, flat within the wall's own noise, in one piece from the corner).
-// The hypothesis only says where to look; the plane is where its points are.
+// them, standing upright, flat within the wall's own noise, in one piece from the corner;
+// above a hedge that stands in front of it when the two disagree). The hypothesis only says
+// where to look; the plane is where its points are.
 #pragma once
 
 #include <cstdint>
@@ -38,9 +39,6 @@ class CornerLook {
   CornerLookCounters look(std::span<const msg::PlanePatch> planes, double surface_noise_m,
                           VoxelGrid& voxels, PlaneMerger& merger) noexcept;
 
-  // The section key of the planes it adds: after every real section, and no neighbour of one.
-  static constexpr CellKey kSection = CellKey{1} << 63;
-
   // An interval along some direction (empty: low > high).
   struct Extent {
     double low = std::numeric_limits<double>::infinity();
@@ -57,6 +55,7 @@ class CornerLook {
     Eigen::Vector3d wall_normal = Eigen::Vector3d::UnitY();  // the old wall's: square to it
     double z_min_m = 0.0;
     double z_max_m = 0.0;
+    double wall_top_m = 0.0;     // the old wall's
     double reach_m = 0.0;        // how far along its way it may run
     double reach_from_m = -0.5;  // and from where (behind the corner: a blurred end)
     bool free_only = true;       // false: samples that planes took count too
@@ -102,6 +101,19 @@ class CornerLook {
   Gathered gather(const Corner& corner, const Eigen::Vector3d& normal, double offset_m,
                   double band_m, double reach_to_m, std::span<const NearPlane> near,
                   std::int32_t take_as, std::span<float, kBins> points_per_bin) noexcept;
+  // The rounds of fitting at a corner, and what their last fit is.
+  struct CornerFit {
+    PlaneFit fit;
+    Gathered gathered;  // the points of the last band
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitX();
+    double offset_m = 0.0;
+    double band_m = 0.0;
+    double reach_to_m = 0.0;
+    bool wall_like = false;  // enough points, long enough, flat enough
+    bool upright = false;
+  };
+  CornerFit fit_corner(const Corner& corner, double noise_rmse_m,
+                       std::span<const NearPlane> near) noexcept;
   // Tries one corner; true when a wall was found there (and added to the merger).
   bool try_corner(const Corner& corner, double noise_rmse_m, std::span<const NearPlane> near,
                   PlaneMerger& merger) noexcept;

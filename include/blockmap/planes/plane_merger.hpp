@@ -33,6 +33,10 @@ struct SectionPlane {
   std::array<Eigen::Vector3f, 4> corners_m{};
 };
 
+// The section key of planes that a look after merging adds (CornerLook): after every real
+// section's key, and no neighbour of one (a packed key never has its top bit set).
+inline constexpr CellKey kLookSection = CellKey{1} << 63;
+
 // A plane known not to be a surface: a laser's own scan plane. A laser sweeping foliage or
 // clutter from a robot that drives within its scan plane lays its returns on that plane scan
 // after scan, and they look flat, however far from the laser they are. A merged plane within
