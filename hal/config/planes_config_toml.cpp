@@ -58,6 +58,7 @@ planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view
   c.merge_gap_fraction = t.number_or("merge_gap_fraction", c.merge_gap_fraction);
   c.corner_look = t.boolean_or("corner_look", c.corner_look);
   c.corner_reach_m = t.number_or("corner_reach_m", c.corner_reach_m);
+  c.corner_look_min_noise_m = t.number_or("corner_look_min_noise_m", c.corner_look_min_noise_m);
   c.label_tolerance_deg = t.number_or("label_tolerance_deg", c.label_tolerance_deg);
   c.min_wall_height_m = t.number_or("min_wall_height_m", c.min_wall_height_m);
   c.min_wall_width_m = t.number_or("min_wall_width_m", c.min_wall_width_m);

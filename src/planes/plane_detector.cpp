@@ -185,9 +185,11 @@ std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
     cache_.end(merger_.section_planes(), merger_.counters().section_planes_dropped_full == 0);
   }
   std::span<const msg::PlanePatch> planes = merger_.merge();
-  // The corner look reads the merged walls; what it finds is merged with the rest. (Walls from
-  // a level laser's traces have no height to look along: not for walls_from_lines.)
-  if (config_.corner_look && !config_.walls_from_lines) {
+  // The corner look reads the merged walls; what it finds is merged with the rest. It is for
+  // clouds blurred by pose errors (in a crisp one the votes find what it would), and not for
+  // walls from a level laser's traces (no height to look along: walls_from_lines).
+  if (config_.corner_look && !config_.walls_from_lines &&
+      stats_.surface_noise_m >= config_.corner_look_min_noise_m) {
     const CornerLookCounters corners =
         CornerLook(config_).look(planes, stats_.surface_noise_m, voxels_, merger_);
     stats_.corner_walls = corners.walls_found;

@@ -66,6 +66,9 @@ std::string validate(const PlanesConfig& c) {
   if (!(c.corner_reach_m >= kMinCornerReachM && c.corner_reach_m <= kMaxCornerReachM)) {
     return "corner_reach_m must be in [3, 31.5]";
   }
+  if (!(c.corner_look_min_noise_m >= 0.0)) {
+    return "corner_look_min_noise_m must be >= 0";
+  }
   if (!(c.label_tolerance_deg > 0.0 && c.label_tolerance_deg < 45.0)) {
     return "label_tolerance_deg must be in (0, 45)";
   }
