@@ -192,6 +192,7 @@ std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
       stats_.surface_noise_m >= config_.corner_look_min_noise_m) {
     const CornerLookCounters corners =
         CornerLook(config_).look(planes, stats_.surface_noise_m, voxels_, merger_);
+    stats_.corners_looked_at = corners.corners_tried;
     stats_.corner_walls = corners.walls_found;
     if (corners.walls_found > 0) {
       planes = merger_.merge();

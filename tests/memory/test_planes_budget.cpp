@@ -2,6 +2,7 @@
 // nothing, however many points, sections and planes there are.
 #include <gtest/gtest.h>
 
+#include <numbers>
 #include <random>
 #include <vector>
 
@@ -42,6 +43,16 @@ TEST(PlanesBudget, DetectingAllocatesNothingAfterInitAndFitsItsBudget) {
     detector.add_points(cloud.points_m);
     planes = detector.detect().size();
   });
+  // And a cloud blurred by pose errors, where the corner look runs after merging.
+  const hal::sim::TruthCloud blurred = hal::sim::simulate_truth_cloud(
+      hal::sim::load_world("usc_block"), hal::sim::load_robot("paper_rmp"), options,
+      hal::sim::PoseNoise{0.5 * std::numbers::pi / 180.0, 0.05, 0.0});
+  EXPECT_NO_ALLOCATIONS({
+    detector.clear();
+    detector.add_points(blurred.points_m);
+    planes = detector.detect().size();
+  });
+  EXPECT_GT(detector.stats().corners_looked_at, 0u);
   EXPECT_LE(detector.memory_bytes(), arena.used_bytes());
   EXPECT_EQ(arena.failed_allocations().value(), 0u);
 }

@@ -41,10 +41,11 @@ struct DetectionStats {
   std::uint64_t section_planes = 0;
   std::uint64_t samples_taken = 0;  // by section planes (each sample once)
   std::uint64_t planes = 0;
-  std::uint64_t planes_excluded = 0;  // known not to be surfaces (set_exclusions)
-  std::uint64_t corner_walls = 0;     // walls the corner look found (CornerLook)
-  double surface_noise_m = 0.0;       // VoxelGrid::surface_noise_m(): how blurred the cloud is
-  std::uint64_t shapes_reused = 0;    // samples whose fine shape was kept (keep_shapes)
+  std::uint64_t planes_excluded = 0;    // known not to be surfaces (set_exclusions)
+  std::uint64_t corners_looked_at = 0;  // wall ends the corner look tried (CornerLook)
+  std::uint64_t corner_walls = 0;       // walls it found there
+  double surface_noise_m = 0.0;         // VoxelGrid::surface_noise_m(): how blurred the cloud is
+  std::uint64_t shapes_reused = 0;      // samples whose fine shape was kept (keep_shapes)
 };
 
 class PlaneDetector {
