@@ -107,6 +107,16 @@ msg::PlanePatch ground_patch() {
   return p;
 }
 
+// The building's front, the street before it and its east side glimpsed in 12 scans through
+// 0.25 m of pose error.
+Scene front_and_glimpsed_side() {
+  Scene scene;
+  scene.front_wall();
+  scene.street(-8.0f, -0.2f);
+  scene.glimpsed_side(0.5f, 8.0f, 12, 0.25);
+  return scene;
+}
+
 struct Looked {
   CornerLookCounters counters;
   std::vector<msg::PlanePatch> planes;  // what the merger makes of the walls found
@@ -132,10 +142,7 @@ Looked look_at(const Scene& scene, std::span<const msg::PlanePatch> planes,
 }
 
 TEST(CornerLook, FindsASideGlimpsedThroughPoseErrorsWhereTheFrontEnds) {
-  Scene scene;
-  scene.front_wall();
-  scene.street(-8.0f, -0.2f);
-  scene.glimpsed_side(0.5f, 8.0f, 12, 0.25);
+  const Scene scene = front_and_glimpsed_side();
   const std::array planes{front_patch(), ground_patch()};
   // A blurred cloud: its surfaces are 0.1 m thick (RMS), the glimpsed side about 0.25 m.
   const Looked looked = look_at(scene, planes, 0.1);
@@ -180,10 +187,7 @@ TEST(CornerLook, LooksOnlyIntoTheBuildingNotAlongTheStreet) {
 }
 
 TEST(CornerLook, ACornerWhoseSideWasFoundIsNotLookedAt) {
-  Scene scene;
-  scene.front_wall();
-  scene.street(-8.0f, -0.2f);
-  scene.glimpsed_side(0.5f, 8.0f, 12, 0.25);
+  const Scene scene = front_and_glimpsed_side();
   const std::array planes{
       front_patch(), ground_patch(),
       wall_patch({1, 0, 0}, kEastX, 0.25, {{{12, 0, 0}, {12, 8, 0}, {12, 8, 6}, {12, 0, 6}}})};
@@ -196,10 +200,7 @@ TEST(CornerLook, ACornerWhoseSideWasFoundIsNotLookedAt) {
 
 TEST(CornerLook, ASlabThickerThanTheCloudsSurfacesIsNoWall) {
   // In a crisp cloud (surfaces 2 cm thick) a slab 0.25 m thick is a hedge, not a wall.
-  Scene scene;
-  scene.front_wall();
-  scene.street(-8.0f, -0.2f);
-  scene.glimpsed_side(0.5f, 8.0f, 12, 0.25);
+  const Scene scene = front_and_glimpsed_side();
   const std::array planes{front_patch(), ground_patch()};
   const Looked looked = look_at(scene, planes, 0.02);
   EXPECT_EQ(looked.counters.corners_tried, 2u);
