@@ -428,6 +428,9 @@ std::uint64_t VoxelGrid::load_block(std::uint32_t block, std::uint64_t cells,
                                     std::size_t first) noexcept {
   std::uint64_t live = 0;
   std::size_t id = first;
+  if (keeping_shapes_) {
+    block_flags_[block] |= kLoaded;
+  }
   for (; cells != 0; cells &= cells - 1) {
     const auto bit = static_cast<std::uint32_t>(std::countr_zero(cells));
     const std::uint32_t slot = slot_of_cell(block, bit);
@@ -910,6 +913,7 @@ void VoxelGrid::take_coarse_look(const ShapeOptions& options, ShapeLimits limits
       if (scattered(voxel)) {
         voxel.shape = LocalShape::kPlanar;
         voxel.axis = normal;
+        voxel.coarse_look = true;
       }
     }
   }
@@ -1032,29 +1036,41 @@ void VoxelGrid::estimate_fine_shapes(const ShapeLimits& limits, double& thicknes
     if (i + kAhead < block_count_) {
       look_up(i + kAhead);
     }
-    const BlockRange range = block_range(block_order_[i].block);
+    const std::uint32_t block = block_order_[i].block;
+    const BlockRange range = block_range(block);
     const BlockNeighbourhood& around = ring[i % ring.size()];
     const std::uint64_t stale = stale_in(i);
+    // Samples read from the table have lost their shapes; moved ones carry them.
+    const bool loaded = keeping_shapes_ && (block_flags_[block] & kLoaded) != 0;
     // The block's samples are its live cells in bit order.
-    std::uint64_t cells = live_masks_[block_order_[i].block];
+    std::uint64_t cells = live_masks_[block];
     float thickness_sum = 0.0f;  // per block in float, over the cloud in double
     for (std::uint32_t id = range.first; id < range.first + range.count; ++id, cells &= cells - 1) {
       Voxel& voxel = voxels_[id];
-      float thickness_m = 0.0f;
-      KeptShape* kept = keeping_shapes_ ? &kept_[dense_serial_[id]] : nullptr;
       if ((stale & cells & (~cells + 1)) != 0) {
-        thickness_m = estimate_shape(voxel, around, limits);
-        if (kept != nullptr) {
-          *kept = KeptShape{voxel.axis, thickness_m, voxel.shape, true};
+        voxel.fine_thickness_m = estimate_shape(voxel, around, limits);
+        if (keeping_shapes_) {
+          kept_[dense_serial_[id]] =
+              KeptShape{voxel.axis, voxel.fine_thickness_m, voxel.shape, true};
         }
-      } else {
+      } else if (loaded) {
         // A new sample marks its cell changed, so a kept shape was estimated before.
-        BLOCKMAP_CHECK_MSG(kept->valid, "a kept block holds a sample never estimated");
-        voxel.shape = kept->shape;
-        voxel.axis = kept->axis;
-        thickness_m = kept->thickness_m;
+        const KeptShape& kept = kept_[dense_serial_[id]];
+        BLOCKMAP_CHECK_MSG(kept.valid, "a kept block holds a sample never estimated");
+        voxel.shape = kept.shape;
+        voxel.axis = kept.axis;
+        voxel.fine_thickness_m = kept.thickness_m;
+        ++shapes_reused_;
+      } else if (voxel.coarse_look) {
+        // What the coarse look made planar was scattered (it looks again below).
+        voxel.shape = LocalShape::kScattered;
+        voxel.axis = Eigen::Vector3f::UnitZ();
+        ++shapes_reused_;
+      } else {
         ++shapes_reused_;
       }
+      voxel.coarse_look = false;
+      const float thickness_m = voxel.fine_thickness_m;
       if (voxel.shape == LocalShape::kPlanar) {
         thickness_sum += thickness_m;
         ++planar_count;

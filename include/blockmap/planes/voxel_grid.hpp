@@ -114,10 +114,16 @@ struct VoxelSums {
 // the shape estimate and the detector add.
 struct Voxel : VoxelSums {
   LocalShape shape = LocalShape::kTooFewPoints;
+  // Kept shapes: the coarse look made this scattered sample planar (its fine shape is
+  // scattered), and the fine estimate's thickness. A block that compact() moves as it was
+  // carries its fine shapes in its samples, so the next shape pass need not look them up.
+  // (Both sit in what was padding: a Voxel stays 80 bytes.)
+  bool coarse_look = false;
   Eigen::Vector3f axis = Eigen::Vector3f::UnitZ();  // normal (planar) or direction (linear)
   std::uint32_t axis_cell = 0;  // the orientation cell of the axis (the detector sets it)
   std::int32_t owner = -1;      // the plane patch that took this voxel, or -1
   std::uint32_t block = 0;      // the index of its block
+  float fine_thickness_m = 0.0f;
 };
 
 // The moments of some points about a block's centre, as twelve floats (count, the sum, the
@@ -429,6 +435,9 @@ class VoxelGrid {
   // In block_order_ under its present key: the next compact() keeps its place, and moves its
   // samples as they are unless it changed (kept until the block's index serves a new key).
   static constexpr std::uint8_t kPlaced = 4;
+  // Its samples were read from the table by this compact() (new, changed or laid out afresh):
+  // they carry no shapes, which come from kept_ where they are not estimated again.
+  static constexpr std::uint8_t kLoaded = 16;
   bool keeping_shapes_ = false;
   std::span<std::uint32_t> serial_of_slot_;
   std::span<std::uint32_t> free_serials_;  // serials of erased voxels, for new ones
