@@ -615,6 +615,46 @@ TEST(VoxelGrid, KeptShapesAreTheShapesOfAGridBuiltAfresh) {
   expect_grid_built_afresh(kept, after, kSamples);
 }
 
+// The coarse look follows the cloud's noise, which samples far away change: when a large
+// crisp floor arrives, a blurred wall band that no sample of changed is no longer a surface.
+// Its blocks are moved as they were, carrying their fine shapes (scattered, made planar by
+// the last coarse look); the pass must hand them back to the coarse look as scattered.
+TEST(VoxelGrid, AWallBandNoLongerBlurredEnoughIsScatteredAgainThoughItDidNotChange) {
+  constexpr std::size_t kSamples = std::size_t{1} << 16;
+  std::vector<Eigen::Vector3f> points = floor_and_blurred_wall_band(0.03f, 11);
+  const std::vector<VoxelSums> before = samples_of(points);
+  std::mt19937 rng(13);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  std::normal_distribution<float> crisp(0.0f, 0.003f);
+  for (int i = 0; i < 250000; ++i) {
+    points.emplace_back(60.0f + 25.0f * unit(rng), 60.0f + 25.0f * unit(rng), crisp(rng));
+  }
+  const std::vector<VoxelSums> after = samples_of(points);
+  const auto wall_planar = [](const VoxelGrid& grid) {
+    std::size_t planar = 0;
+    for (const Voxel& voxel : grid.voxels()) {
+      planar += grid.centroid_m(voxel).x() < 10.0f && voxel.shape == LocalShape::kPlanar ? 1 : 0;
+    }
+    return planar;
+  };
+
+  Arena arena(VoxelGrid::arena_bytes(kSamples) + VoxelGrid::shape_cache_bytes(kSamples));
+  VoxelGrid kept;
+  start_kept_grid(kept, arena, before, kSamples);
+  const std::size_t planar_before = wall_planar(kept);
+  EXPECT_GT(planar_before, 1000u) << "the coarse look takes the band in a blurred cloud";
+  for (const VoxelSums& sums : after) {
+    kept.set_sums(sums);
+  }
+  kept.compact();
+  kept.estimate_shapes(ShapeOptions{});
+
+  EXPECT_LT(kept.surface_noise_m(), 0.02);
+  EXPECT_LT(wall_planar(kept), planar_before / 10) << "in a crisp cloud the band is scattered";
+  EXPECT_GT(kept.shapes_reused(), before.size() / 2) << "the band's blocks did not change";
+  expect_grid_built_afresh(kept, after, kSamples);
+}
+
 // A fine shape reads the 3 x 3 x 3 samples around it, so a changed sample makes exactly those
 // stale, across block borders: one at a corner of four 0.8 m blocks of a floor has its eight
 // neighbours in all four estimated again, and nothing else.
