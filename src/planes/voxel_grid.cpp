@@ -1053,21 +1053,20 @@ void VoxelGrid::estimate_fine_shapes(const ShapeLimits& limits, double& thicknes
           kept_[dense_serial_[id]] =
               KeptShape{voxel.axis, voxel.fine_thickness_m, voxel.shape, true};
         }
-      } else if (loaded) {
-        // A new sample marks its cell changed, so a kept shape was estimated before.
-        const KeptShape& kept = kept_[dense_serial_[id]];
-        BLOCKMAP_CHECK_MSG(kept.valid, "a kept block holds a sample never estimated");
-        voxel.shape = kept.shape;
-        voxel.axis = kept.axis;
-        voxel.fine_thickness_m = kept.thickness_m;
-        ++shapes_reused_;
-      } else if (voxel.coarse_look) {
-        // What the coarse look made planar was scattered (it looks again below).
-        voxel.shape = LocalShape::kScattered;
-        voxel.axis = Eigen::Vector3f::UnitZ();
-        ++shapes_reused_;
       } else {
         ++shapes_reused_;
+        if (loaded) {
+          // A new sample marks its cell changed, so a kept shape was estimated before.
+          const KeptShape& kept = kept_[dense_serial_[id]];
+          BLOCKMAP_CHECK_MSG(kept.valid, "a kept block holds a sample never estimated");
+          voxel.shape = kept.shape;
+          voxel.axis = kept.axis;
+          voxel.fine_thickness_m = kept.thickness_m;
+        } else if (voxel.coarse_look) {
+          // What the coarse look made planar was scattered (it looks again below).
+          voxel.shape = LocalShape::kScattered;
+          voxel.axis = Eigen::Vector3f::UnitZ();
+        }
       }
       voxel.coarse_look = false;
       const float thickness_m = voxel.fine_thickness_m;
