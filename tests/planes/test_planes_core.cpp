@@ -583,6 +583,15 @@ void start_kept_grid(VoxelGrid& grid, Arena& arena, std::span<const VoxelSums> s
   grid.estimate_shapes(ShapeOptions{});
 }
 
+// The kept grid's samples set to `after` (changed or new), laid out and shaped again.
+void update_kept_grid(VoxelGrid& grid, std::span<const VoxelSums> after) {
+  for (const VoxelSums& sums : after) {
+    grid.set_sums(sums);
+  }
+  grid.compact();
+  grid.estimate_shapes(ShapeOptions{});
+}
+
 // Kept shapes: after some samples change (set_sums) and some are new (add_sums), the shapes
 // that estimate_shapes() keeps and the ones it estimates again are exactly those of a grid
 // built afresh from the same sums.
@@ -604,11 +613,7 @@ TEST(VoxelGrid, KeptShapesAreTheShapesOfAGridBuiltAfresh) {
   Arena arena(VoxelGrid::arena_bytes(kSamples) + VoxelGrid::shape_cache_bytes(kSamples));
   VoxelGrid kept;
   start_kept_grid(kept, arena, before, kSamples);
-  for (const VoxelSums& sums : after) {
-    kept.set_sums(sums);
-  }
-  kept.compact();
-  kept.estimate_shapes(ShapeOptions{});
+  update_kept_grid(kept, after);
 
   EXPECT_GT(kept.shapes_reused(), kept.size() / 2) << "most blocks did not change";
   EXPECT_LT(kept.shapes_reused(), kept.size());
@@ -643,11 +648,7 @@ TEST(VoxelGrid, AWallBandNoLongerBlurredEnoughIsScatteredAgainThoughItDidNotChan
   start_kept_grid(kept, arena, before, kSamples);
   const std::size_t planar_before = wall_planar(kept);
   EXPECT_GT(planar_before, 1000u) << "the coarse look takes the band in a blurred cloud";
-  for (const VoxelSums& sums : after) {
-    kept.set_sums(sums);
-  }
-  kept.compact();
-  kept.estimate_shapes(ShapeOptions{});
+  update_kept_grid(kept, after);
 
   EXPECT_LT(kept.surface_noise_m(), 0.02);
   EXPECT_LT(wall_planar(kept), planar_before / 10) << "in a crisp cloud the band is scattered";
