@@ -638,7 +638,7 @@ TEST(VoxelGrid, AWallBandNoLongerBlurredEnoughIsScatteredAgainThoughItDidNotChan
   const auto wall_planar = [](const VoxelGrid& grid) {
     std::size_t planar = 0;
     for (const Voxel& voxel : grid.voxels()) {
-      planar += grid.centroid_m(voxel).x() < 10.0f && voxel.shape == LocalShape::kPlanar ? 1 : 0;
+      planar += grid.centroid_m(voxel).x() < 10.0f && voxel.shape == LocalShape::kPlanar ? 1U : 0U;
     }
     return planar;
   };
