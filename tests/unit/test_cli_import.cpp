@@ -288,8 +288,8 @@ Result import_ual_scans(const fs::path& logs) {
 
 // Issue 7's real data: the UAL loop's recorded scans (its one level laser) through the whole
 // pipeline. The laser sees each wall as a line; the walls come out as vertical planes, and the
-// laser's own sheet of returns as none. Still short of the issue (docs/mapper.md): the block's
-// facades come in pieces of 5-20 m, and kerbs, cars and hedges are walls too.
+// laser's own sheet of returns as none. Still short of what a user wants (docs/mapper.md): kerbs,
+// cars, hedges and trunks are short walls too, and some facades stay in two or three pieces.
 TEST(ImportCommand, TheRealUalScansMapWallsAsVerticalPlanes) {
   const fs::path folder = scratch("ual_scans");
   if (!ual_scans_present()) {
@@ -349,12 +349,13 @@ TEST(ImportCommand, TheRealUalScansMapWallsAsVerticalPlanes) {
       "UAL scans: %zu walls of 5 m or more, %.0f m in all; %zu along the block's axes (%.0f "
       "m); the longest %.1f m\n",
       walls.size(), total_m, along_axes, along_axes_m, walls.front().first);
-  // Measured on x86 (18 walls, 143 m, 12 along the axes with 95 m, 16.2 m the longest), with
-  // room for the other architectures' rounding.
-  EXPECT_GE(walls.size(), 10u);
+  // Measured on x86 (2026-11-24: 43 walls, 656 m, 31 along the axes with 537 m, 74.2 m the
+  // longest; 18 walls and 16.2 m when the test was written), with room for the other
+  // architectures' rounding.
+  EXPECT_GE(walls.size(), 20u);
   EXPECT_GE(static_cast<double>(along_axes), 0.5 * static_cast<double>(walls.size()));
   EXPECT_GE(along_axes_m, 0.5 * total_m);
-  EXPECT_GE(walls.front().first, 10.0);
+  EXPECT_GE(walls.front().first, 30.0);
   fs::remove_all(folder);
 }
 
