@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 #include "blockmap/core/check.hpp"
@@ -22,6 +23,28 @@ Eigen::AlignedBox3d box_of(std::span<const Eigen::Vector3d> polygon) noexcept {
 
 std::span<const Eigen::Vector3d> polygon_of(const msg::PlanePatch& plane) noexcept {
   return {plane.polygon_m.data(), plane.polygon_size};
+}
+
+// Whether `meet_at` holds at the two polygons' vertices nearest each other. A facade that a
+// level laser saw through drifting poses comes in long traces a degree or two apart: their
+// centroids, tens of metres from each other, lie off each other's line by that angle times
+// their distance, while the traces meet where one ends and the next begins.
+template <typename MeetAt>
+bool meet_at_nearest_ends(const msg::PlanePatch& known, const msg::PlanePatch& detected,
+                          const MeetAt& meet_at) noexcept {
+  const Eigen::Vector3d* known_end = nullptr;
+  const Eigen::Vector3d* detected_end = nullptr;
+  double nearest_m2 = std::numeric_limits<double>::infinity();
+  for (const Eigen::Vector3d& a : polygon_of(known)) {
+    for (const Eigen::Vector3d& b : polygon_of(detected)) {
+      if ((a - b).squaredNorm() < nearest_m2) {
+        nearest_m2 = (a - b).squaredNorm();
+        known_end = &a;
+        detected_end = &b;
+      }
+    }
+  }
+  return known_end != nullptr && meet_at(*known_end, *detected_end);
 }
 
 // A voxel's sums as moments about the frame's origin.
@@ -170,8 +193,14 @@ bool PlaneRegistry::matches(const msg::PlanePatch& known, const Eigen::AlignedBo
   }
   const double tolerance =
       std::max(config_.match_distance_m, 2.0 * std::max(known.rmse_m, detected.rmse_m));
-  if (std::abs(known.normal.dot(detected.centroid_m) - known.d_m) > tolerance ||
-      std::abs(detected.normal.dot(known.centroid_m) - detected.d_m) > tolerance) {
+  // Each plane passes within the tolerance of a point of the other: its centroid, or (level
+  // lasers' traces) the end nearest to it.
+  const auto meet_at = [&](const Eigen::Vector3d& known_at, const Eigen::Vector3d& detected_at) {
+    return std::abs(known.normal.dot(detected_at) - known.d_m) <= tolerance &&
+           std::abs(detected.normal.dot(known_at) - detected.d_m) <= tolerance;
+  };
+  if (!meet_at(known.centroid_m, detected.centroid_m) &&
+      !(config_.walls_from_lines && meet_at_nearest_ends(known, detected, meet_at))) {
     return false;
   }
   return known_box.exteriorDistance(detected_box) <= config_.match_gap_m;

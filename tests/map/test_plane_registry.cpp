@@ -2,6 +2,8 @@
 // their tiles leave, finalized when their region has left, merged, retracted, reopened.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <numbers>
 #include <vector>
 
 #include "blockmap/core/arena.hpp"
@@ -36,6 +38,33 @@ Detected wall(double x0_m, double x1_m, double y_m, double z1_m = 4.0) {
   d.plane.polygon_m[1] = {x1_m, y_m, 0.0};
   d.plane.polygon_m[2] = {x1_m, y_m, z1_m};
   d.plane.polygon_m[3] = {x0_m, y_m, z1_m};
+  return d;
+}
+
+// A level laser's trace of a wall from from_m to to_m (x, y): points every 0.1 m along it in a
+// slice 0.1 m high at the laser's height, reported as the vertical plane through the line.
+Detected trace(const Eigen::Vector2d& from_m, const Eigen::Vector2d& to_m) {
+  constexpr double kHeightM = 0.5;
+  Detected d;
+  const Eigen::Vector2d along = (to_m - from_m).normalized();
+  const double length_m = (to_m - from_m).norm();
+  for (double s = 0.0; s <= length_m + 1e-9; s += 0.1) {
+    const Eigen::Vector2d p = from_m + s * along;
+    for (const double z : {kHeightM - 0.05, kHeightM + 0.05}) {
+      d.moments.add(Eigen::Vector3d(p.x(), p.y(), z));
+    }
+  }
+  d.plane.kind = msg::PlaneKind::kWall;
+  d.plane.normal = Eigen::Vector3d(-along.y(), along.x(), 0.0);
+  d.plane.d_m = d.plane.normal.head<2>().dot(from_m);
+  d.plane.support = d.moments.weight;
+  d.plane.rmse_m = 0.02;
+  d.plane.centroid_m = d.moments.mean();
+  d.plane.polygon_size = 4;
+  d.plane.polygon_m[0] = {from_m.x(), from_m.y(), kHeightM - 0.1};
+  d.plane.polygon_m[1] = {to_m.x(), to_m.y(), kHeightM - 0.1};
+  d.plane.polygon_m[2] = {to_m.x(), to_m.y(), kHeightM + 0.1};
+  d.plane.polygon_m[3] = {from_m.x(), from_m.y(), kHeightM + 0.1};
   return d;
 }
 
@@ -165,6 +194,42 @@ TEST(PlaneRegistry, ADetectionSpanningTwoPlanesMakesThemOne) {
   EXPECT_EQ(count(changes, msg::PlaneChangeKind::kChanged), 1u);
   EXPECT_EQ(r.registry.live_count(), 1u);
   EXPECT_EQ(r.registry.counters().merged, 1u);
+}
+
+// A facade that a level laser saw through drifting poses: two 30 m traces 1.5 deg apart, the
+// second beginning where the first ends. Their centroids lie 0.36-0.44 m off each other's line
+// (over the 0.15 m that matches), and they meet at the joint: with walls_from_lines they are
+// one plane. A trace 0.4 m in front of the first (a fence, a row of cars) stays apart, and
+// planes of surfaces keep the centroid rule.
+TEST(PlaneRegistry, LevelLaserTracesOfABentFacadeMeetAtTheirEnds) {
+  const double rise_m = 30.0 * std::tan(1.5 * std::numbers::pi / 180.0);
+  const Detected first = trace({0.0, 0.0}, {30.0, 0.0});
+  const Detected bent = trace({30.5, 0.05}, {60.5, 0.05 + rise_m});
+  const Detected fence = trace({30.5, 0.4}, {60.5, 0.4});
+  PlaneRegistryConfig lines;
+  lines.walls_from_lines = true;
+  {
+    Registry r(lines);
+    const auto added = r.detect({first});
+    ASSERT_EQ(added.size(), 1u);
+    const auto changes = r.detect({bent});
+    ASSERT_EQ(changes.size(), 1u);
+    EXPECT_EQ(changes[0].change, msg::PlaneChangeKind::kChanged);
+    EXPECT_EQ(changes[0].plane.id, added[0].plane.id);
+    EXPECT_EQ(r.registry.live_count(), 1u);
+  }
+  {
+    Registry r(lines);
+    static_cast<void>(r.detect({first}));
+    EXPECT_EQ(count(r.detect({fence}), msg::PlaneChangeKind::kAdded), 1u);
+    EXPECT_EQ(r.registry.live_count(), 2u);
+  }
+  {
+    Registry r;  // surfaces: the centroids decide
+    static_cast<void>(r.detect({first}));
+    EXPECT_EQ(count(r.detect({bent}), msg::PlaneChangeKind::kAdded), 1u);
+    EXPECT_EQ(r.registry.live_count(), 2u);
+  }
 }
 
 TEST(PlaneRegistry, RetractsAPlaneNoLongerSeenAndFinalizesOneThatKeptPoints) {

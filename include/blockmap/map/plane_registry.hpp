@@ -49,6 +49,8 @@ struct PlaneRegistryConfig {
   // A detected plane is a live plane's next look when their normals differ by at most
   // match_angle_deg, each centroid lies within match_distance_m (or twice the planes' RMS
   // distance, when larger) of the other plane, and their extents come within match_gap_m.
+  // With walls_from_lines, the polygons' vertices nearest each other may stand for the
+  // centroids: the traces of a facade bent by the poses meet where they join.
   double match_angle_deg = 5.0;
   double match_distance_m = 0.15;
   double match_gap_m = 2.0;
