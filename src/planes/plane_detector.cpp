@@ -275,16 +275,33 @@ void PlaneDetector::detect_in_section(std::size_t index) noexcept {
   if (before != nullptr && before->signature == entry.signature) {
     replay_section(*before, section, blocks);
     entry.took_samples = before->took_samples;
+    entry.searched_points = before->searched_points;
     ++stats_.sections_replayed;
+  } else if (before != nullptr && still_barren(*before, free_points)) {
+    // Nothing to replay: it gave no plane and took no sample.
+    entry.searched_points = before->searched_points;
+    ++stats_.sections_replayed;
+    ++stats_.sections_still_barren;
   } else {
+    entry.searched_points = static_cast<std::uint16_t>(
+        std::min<std::uint64_t>(free_points, SectionCache::kMaxSearchedPoints));
     // What this section took last time (if it was searched then) is decided again.
     cache_.forget_taken(section, blocks, voxels_);
     const std::uint64_t taken_before = stats_.samples_taken;
     search_section(section, blocks);
     entry.took_samples = stats_.samples_taken > taken_before ? 1 : 0;
   }
-  entry.plane_count = static_cast<std::uint16_t>(merger_.section_plane_count() - entry.first_plane);
+  entry.plane_count = static_cast<std::uint8_t>(merger_.section_plane_count() - entry.first_plane);
   cache_.record(entry);
+}
+
+bool PlaneDetector::still_barren(const SectionCache::Entry& before,
+                                 std::uint64_t free_points) const noexcept {
+  // A count that was capped says nothing about growth: searched again.
+  return config_.barren_section_growth > 0.0 && before.plane_count == 0 &&
+         before.took_samples == 0 && before.searched_points < SectionCache::kMaxSearchedPoints &&
+         static_cast<double>(free_points) <
+             static_cast<double>(before.searched_points) * (1.0 + config_.barren_section_growth);
 }
 
 void PlaneDetector::search_section(CellKey section,

@@ -69,6 +69,9 @@ std::string validate(const PlanesConfig& c) {
   if (!(c.corner_look_min_noise_m >= 0.0)) {
     return "corner_look_min_noise_m must be >= 0";
   }
+  if (!(c.barren_section_growth >= 0.0 && c.barren_section_growth <= 100.0)) {
+    return "barren_section_growth must be in [0, 100]";
+  }
   if (!(c.label_tolerance_deg > 0.0 && c.label_tolerance_deg < 45.0)) {
     return "label_tolerance_deg must be in (0, 45)";
   }

@@ -59,7 +59,8 @@ struct MapperRun {
 };
 
 MapperRun map_world(const std::string& world, PoseSource poses, double duration_s = kDurationS,
-                    bool incremental_extraction = true, double pose_lag_s = 0.0) {
+                    bool incremental_extraction = true, double pose_lag_s = 0.0,
+                    double barren_section_growth = planes::PlanesConfig{}.barren_section_growth) {
   const hal::sim::RobotSpec robot = hal::sim::load_robot("paper_rmp");
   hal::sim::SimOptions options;
   options.seed = 3;
@@ -71,6 +72,7 @@ MapperRun map_world(const std::string& world, PoseSource poses, double duration_
   config.pose_source = poses;
   config.incremental_extraction = incremental_extraction;
   config.localizer.map_pose_lag_s = pose_lag_s;
+  config.planes.barren_section_growth = barren_section_growth;
   Arena arena(Mapper::arena_bytes(config));
   auto mapper = std::make_unique<Mapper>();
   mapper->init(arena, config);
@@ -209,23 +211,30 @@ TEST(MapperSim, UscBlockWithTruePosesFindsTheFaces) {
 // The same run twice gives the same bytes. And the detector keeps the window's samples, their
 // shapes and its sections' results: it takes only the samples that gained points, lets go of
 // those whose tile left, and replays every section whose inputs are as they were. What it
-// keeps is what it would find again, so the stream is also the same, byte for byte, as with
-// every window detected afresh (incremental_extraction off).
+// keeps is what it would find again, so with barren sections searched again at every change
+// (barren_section_growth 0) the stream is also the same, byte for byte, as with every window
+// detected afresh (incremental_extraction off).
 TEST(MapperSim, TheSameRunGivesTheSameStreamWithOrWithoutKeptShapes) {
   const MapperRun a = map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS);
   const MapperRun b = map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS);
   ASSERT_EQ(a.stream.size(), b.stream.size());
   EXPECT_GT(a.stream.size(), 0u);
   EXPECT_TRUE(a.stream == b.stream) << "the plane stream's bytes differ";
+  EXPECT_GT(a.counters.sections_still_barren, 0u) << "the default lets barren sections wait";
+
+  const MapperRun exact =
+      map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS, true, 0.0, 0.0);
   const MapperRun afresh =
       map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS, false);
-  EXPECT_EQ(a.counters.incremental_extractions, a.counters.extractions - 1) << "all but the first";
-  EXPECT_GT(a.tiles_evicted, 0u);
-  EXPECT_GT(a.counters.sections_replayed, a.counters.sections_searched / 2);
+  EXPECT_EQ(exact.counters.incremental_extractions, exact.counters.extractions - 1)
+      << "all but the first";
+  EXPECT_GT(exact.tiles_evicted, 0u);
+  EXPECT_GT(exact.counters.sections_replayed, exact.counters.sections_searched / 2);
+  EXPECT_EQ(exact.counters.sections_still_barren, 0u);
   EXPECT_EQ(afresh.counters.incremental_extractions, 0u);
   EXPECT_EQ(afresh.counters.sections_replayed, 0u);
-  ASSERT_EQ(a.stream.size(), afresh.stream.size());
-  EXPECT_TRUE(a.stream == afresh.stream) << "the kept shapes changed the stream";
+  ASSERT_EQ(exact.stream.size(), afresh.stream.size());
+  EXPECT_TRUE(exact.stream == afresh.stream) << "the kept shapes changed the stream";
 }
 
 // The same messages in the same order give the same stream however they were batched between

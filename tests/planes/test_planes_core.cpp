@@ -853,6 +853,7 @@ TEST(PlaneDetector, KeptSectionsGiveThePlanesOfADetectionAfresh) {
 
   PlanesConfig kept_config = config;
   kept_config.keep_shapes = true;
+  kept_config.barren_section_growth = 0.0;  // every changed section searched again
   DetectorFixture kept(kept_config);
   for (const VoxelSums& sample : before) {
     kept.detector.add_sample(sample);
@@ -908,6 +909,65 @@ TEST(PlaneDetector, KeptSectionsGiveThePlanesOfADetectionAfresh) {
   }
   expect_same_planes(kept.detector.detect(), fresh_planes);
   EXPECT_EQ(kept.detector.stats().sections_replayed, 0u);
+}
+
+// Kept sections that found no plane (barren_section_growth): a ramp the paper's orientations
+// do not search votes in every section it crosses and makes no plane. More returns on it are
+// searched again only once a section's free points have grown by the fraction; with 0, at
+// every change. The planes are the same either way: there are none to miss.
+TEST(PlaneDetector, ABarrenSectionIsSearchedAgainOnceItHasGrownByTheFraction) {
+  std::vector<Eigen::Vector3f> ramp;
+  const Eigen::Vector3f n = direction(30, 20);
+  const Eigen::Vector3f u = n.cross(Eigen::Vector3f::UnitZ()).normalized();
+  const Eigen::Vector3f v = n.cross(u);
+  for (float a = -3.0f; a <= 3.0f; a += 0.05f) {
+    for (float b = -3.0f; b <= 3.0f; b += 0.05f) {
+      ramp.emplace_back(1.5f * n + a * u + b * v);
+    }
+  }
+  // The ramp seen `times` times over: every sample grows alike from one look to the next.
+  const auto ramp_seen = [&](std::size_t times) {
+    std::vector<Eigen::Vector3f> points;
+    for (std::size_t i = 0; i < times; ++i) {
+      points.insert(points.end(), ramp.begin(), ramp.end());
+    }
+    return samples_of(points);
+  };
+  for (const double growth : {0.25, 0.0}) {
+    PlanesConfig config;
+    config.max_samples = 1 << 16;
+    config.keep_shapes = true;
+    config.barren_section_growth = growth;
+    DetectorFixture kept(config);
+    for (const VoxelSums& sample : ramp_seen(10)) {
+      kept.detector.add_sample(sample);
+    }
+    EXPECT_TRUE(kept.detector.detect().empty());
+    const std::uint64_t searched = kept.detector.stats().sections_searched;
+    ASSERT_GT(searched, 20u) << "the ramp's sections vote";
+
+    for (const VoxelSums& sample : ramp_seen(11)) {  // 10 % more
+      kept.detector.set_sample(sample);
+    }
+    EXPECT_TRUE(kept.detector.detect().empty());
+    const DetectionStats a_tenth = kept.detector.stats();
+    EXPECT_EQ(a_tenth.sections_searched, searched);
+    if (growth > 0.0) {
+      EXPECT_EQ(a_tenth.sections_still_barren, searched) << "none grew by a quarter";
+      EXPECT_EQ(a_tenth.sections_replayed, searched);
+    } else {
+      EXPECT_EQ(a_tenth.sections_still_barren, 0u);
+      EXPECT_EQ(a_tenth.sections_replayed, 0u) << "every section changed";
+    }
+
+    // 30 % more than when they were last searched: searched again, whatever the fraction.
+    for (const VoxelSums& sample : ramp_seen(13)) {
+      kept.detector.set_sample(sample);
+    }
+    EXPECT_TRUE(kept.detector.detect().empty());
+    EXPECT_EQ(kept.detector.stats().sections_still_barren, 0u);
+    EXPECT_EQ(kept.detector.stats().sections_replayed, 0u);
+  }
 }
 
 TEST(VoxelGrid, CountingVoxelsBeforeInitGivesTheGridsOwnCount) {
@@ -1004,6 +1064,9 @@ TEST(PlanesConfig, ValidateNamesWhatIsWrong) {
   c = PlanesConfig{};
   c.max_patches = 10;
   EXPECT_NE(validate(c).find("max_patches"), std::string::npos);
+  c = PlanesConfig{};
+  c.barren_section_growth = -0.1;
+  EXPECT_NE(validate(c).find("barren_section_growth"), std::string::npos);
 }
 
 TEST(Polygon, HullGapAndSimplification) {

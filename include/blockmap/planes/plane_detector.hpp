@@ -36,6 +36,8 @@ struct DetectionStats {
   std::uint64_t sections = 0;
   std::uint64_t sections_searched = 0;  // with enough free points to hold a plane
   std::uint64_t sections_replayed = 0;  // of those, as they were last time (SectionCache)
+  // of those, barren last time and grown too little since (barren_section_growth)
+  std::uint64_t sections_still_barren = 0;
   std::uint64_t votes = 0;
   std::uint64_t peaks = 0;
   std::uint64_t section_planes = 0;
@@ -86,6 +88,10 @@ class PlaneDetector {
 
  private:
   void detect_in_section(std::size_t index) noexcept;
+  // A section that gave no plane last time, whose free points have grown by less than
+  // barren_section_growth since it was searched: not searched again yet.
+  [[nodiscard]] bool still_barren(const SectionCache::Entry& before,
+                                  std::uint64_t free_points) const noexcept;
   // The section's Hough transform: votes, peaks, and each peak refined into a plane.
   void search_section(CellKey section, std::span<const std::uint32_t> blocks) noexcept;
   // A section whose inputs are last time's (SectionCache): its planes and samples again.

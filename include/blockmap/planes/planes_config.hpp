@@ -65,6 +65,14 @@ struct PlanesConfig {
   // max_kept_sections searched sections are remembered.
   bool keep_shapes = false;
   std::size_t max_kept_sections = 16384;
+  // With kept sections: a section whose last search found no plane is searched again only
+  // once its free points (those of samples that vote and no earlier section took) have grown
+  // by this fraction since; till then it is taken as barren still. 70 % of a mapper's
+  // searches are such sections (ground swept by a pitching level laser, tree crowns), new
+  // returns reach them scan after scan, and a few per cent more of the same makes no plane.
+  // 0: searched again whenever anything in it changed, and the planes are those of a
+  // detection afresh.
+  double barren_section_growth = 0.25;
 
   // A cell of the accumulator is a plane when its votes (points, summed over the cell and its
   // two neighbours in d) reach this threshold and no neighbouring cell has more.

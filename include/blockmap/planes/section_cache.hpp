@@ -31,9 +31,13 @@ class SectionCache {
     CellKey section = 0;
     std::uint64_t signature = 0;
     std::uint32_t first_plane = 0;  // its planes in planes_of()
-    std::uint16_t plane_count = 0;
-    std::uint16_t took_samples = 0;  // 1 when it took any sample (its claims are recorded)
+    std::uint8_t plane_count = 0;   // at most max_planes_per_section (<= 64)
+    std::uint8_t took_samples = 0;  // 1 when it took any sample (its claims are recorded)
+    // Its free points when it was last searched, up to kMaxSearchedPoints (barren sections:
+    // PlanesConfig::barren_section_growth).
+    std::uint16_t searched_points = 0;
   };
+  static constexpr std::uint16_t kMaxSearchedPoints = 65535;
   struct Counters {
     std::uint64_t sections_replayed = 0;
     std::uint64_t sections_not_kept = 0;  // beyond max_sections: searched again next time
