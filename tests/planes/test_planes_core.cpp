@@ -327,9 +327,14 @@ TEST(PlaneDetector, ALevelLasersLineIsAVerticalWallAndItsScanPlaneIsNone) {
   EXPECT_GT(planes[0].support, 0.9 * 40 * 600);
 }
 
-TEST(PlaneDetector, AnyOrientationFindsARampThePapersModeDoesNotSearch) {
+// A 6 x 6 m ramp sampled every 5 cm, its normal 30 deg from vertical (neither a wall nor a
+// roof), 1.5 m from the origin.
+Eigen::Vector3f ramp_normal() {
+  return direction(30, 20);
+}
+std::vector<Eigen::Vector3f> ramp_cloud() {
   std::vector<Eigen::Vector3f> points;
-  const Eigen::Vector3f n = direction(30, 20);
+  const Eigen::Vector3f n = ramp_normal();
   const Eigen::Vector3f u = n.cross(Eigen::Vector3f::UnitZ()).normalized();
   const Eigen::Vector3f v = n.cross(u);
   for (float a = -3.0f; a <= 3.0f; a += 0.05f) {
@@ -337,6 +342,12 @@ TEST(PlaneDetector, AnyOrientationFindsARampThePapersModeDoesNotSearch) {
       points.emplace_back(1.5f * n + a * u + b * v);
     }
   }
+  return points;
+}
+
+TEST(PlaneDetector, AnyOrientationFindsARampThePapersModeDoesNotSearch) {
+  const std::vector<Eigen::Vector3f> points = ramp_cloud();
+  const Eigen::Vector3f n = ramp_normal();
   PlanesConfig config;
   config.max_samples = 1 << 16;
   DetectorFixture papers(config);
@@ -916,15 +927,7 @@ TEST(PlaneDetector, KeptSectionsGiveThePlanesOfADetectionAfresh) {
 // searched again only once a section's free points have grown by the fraction; with 0, at
 // every change. The planes are the same either way: there are none to miss.
 TEST(PlaneDetector, ABarrenSectionIsSearchedAgainOnceItHasGrownByTheFraction) {
-  std::vector<Eigen::Vector3f> ramp;
-  const Eigen::Vector3f n = direction(30, 20);
-  const Eigen::Vector3f u = n.cross(Eigen::Vector3f::UnitZ()).normalized();
-  const Eigen::Vector3f v = n.cross(u);
-  for (float a = -3.0f; a <= 3.0f; a += 0.05f) {
-    for (float b = -3.0f; b <= 3.0f; b += 0.05f) {
-      ramp.emplace_back(1.5f * n + a * u + b * v);
-    }
-  }
+  const std::vector<Eigen::Vector3f> ramp = ramp_cloud();
   // The ramp seen `times` times over: every sample grows alike from one look to the next.
   const auto ramp_seen = [&](std::size_t times) {
     std::vector<Eigen::Vector3f> points;
