@@ -52,6 +52,21 @@ constexpr double kBelowFootM = 1.0;
 constexpr double kShortOfEndsM = 1.5;
 constexpr double kInsideShare = 0.25;
 constexpr double kMinStreetReturns = 10.0;
+// A step back (a notch): at least kMinStepM into the building (clear of the wall's own blurred
+// returns, as the street in front of it is for way_inside()), and only at a wall's end with no
+// side found within kStepClearM of it. The depths tried are the metres that hold the most
+// points within kStepPeakBins bins either side and kStepPeakOverMean times the mean metre's
+// (a blurred cloud's fog lies between the surfaces). The step's wall may begin up to
+// kStepMaxStartM beyond the end (the end of a blurred wall lies up to a metre or two short of
+// its corner, and from a street at a slant the first wall hides the notch's inner corner),
+// and a bin with less than kStepRunMinShare of the run's mean points is a gap (the ground's
+// fog, a few points a metre, would carry it on past the notch).
+constexpr double kMinStepM = kInFrontFromM;
+constexpr double kStepClearM = 3.0;
+constexpr double kStepMaxStartM = kMaxStartM + kStepClearM;
+constexpr double kStepRunMinShare = 0.1;
+constexpr std::size_t kStepPeakBins = 4;
+constexpr double kStepPeakOverMean = 3.0;
 // The owner of the samples the look takes: taken, by no section's plane.
 constexpr std::int32_t kTaken = std::numeric_limits<std::int32_t>::max();
 
@@ -148,15 +163,17 @@ CornerLook::Gathered CornerLook::gather(const Corner& corner, const Eigen::Vecto
 
 namespace {
 
-// Where the run of points that begins near the corner ends (along its way), or a negative
-// value when no run begins there. Bin k covers [k * kBinM - kBehindM, (k + 1) * kBinM - ...).
+// Where the run of points that begins within max_start_m of the corner ends (along its way),
+// or a negative value when no run begins there. Bin k covers [k * kBinM - kBehindM, ...). A
+// bin with fewer than min_share of the run's mean points per bin so far is a gap.
 template <std::size_t N>
-double run_end_m(std::span<const float, N> points_per_bin, double bin_m, double behind_m) {
+double run_end_m(std::span<const float, N> points_per_bin, double bin_m, double behind_m,
+                 double max_start_m, double min_share) {
   const auto start_of = [&](std::size_t bin) {
     return static_cast<double>(bin) * bin_m - behind_m;
   };
   std::size_t first = N;
-  for (std::size_t bin = 0; bin < N && start_of(bin) <= kMaxStartM; ++bin) {
+  for (std::size_t bin = 0; bin < N && start_of(bin) <= max_start_m; ++bin) {
     if (points_per_bin[bin] > 0.0f) {
       first = bin;
       break;
@@ -166,50 +183,19 @@ double run_end_m(std::span<const float, N> points_per_bin, double bin_m, double 
     return -1.0;
   }
   std::size_t last = first;
+  auto run_points = static_cast<double>(points_per_bin[first]);
   for (std::size_t bin = first + 1; bin < N; ++bin) {
-    if (points_per_bin[bin] > 0.0f) {
+    const auto points = static_cast<double>(points_per_bin[bin]);
+    const double mean_points = run_points / static_cast<double>(last + 1 - first);
+    if (points > 0.0 && points >= min_share * mean_points) {
       if (start_of(bin) - start_of(last + 1) > kMaxGapM) {
         break;
       }
       last = bin;
+      run_points += points;
     }
   }
   return start_of(last + 1);
-}
-
-}  // namespace
-
-namespace {
-
-// The least-squares plane square to the old wall (whose normal is `wall_normal`): its normal
-// is the direction of least spread of the points among the directions square to the wall.
-// Buildings have square corners (the paper's models); a wall glimpsed through pose errors is
-// a fan of a few scans, whose own turn is noise. Its lean stays free: a fan that leans
-// further than a wall may is not one.
-PlaneFit fit_square_plane(const PointMoments& moments, const Eigen::Vector3d& wall_normal,
-                          const Eigen::Vector3d& across) {
-  PlaneFit fit;
-  if (moments.weight < 3.0) {
-    return fit;
-  }
-  const Eigen::Vector3d e1 = (across - across.dot(wall_normal) * wall_normal).normalized();
-  const Eigen::Vector3d e2 = wall_normal.cross(e1);
-  Eigen::Matrix<double, 3, 2> basis;
-  basis << e1, e2;
-  const Eigen::Matrix3d covariance = moments.covariance();
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> solver(basis.transpose() * covariance *
-                                                              basis);
-  const Eigen::Vector2d smallest = solver.eigenvectors().col(0);
-  fit.centroid_m = moments.mean();
-  fit.normal_unit = (smallest.x() * e1 + smallest.y() * e2).normalized();
-  fit.d_m = fit.normal_unit.dot(fit.centroid_m);
-  const double across_m2 = std::max(solver.eigenvalues()(0), 0.0);
-  // Across the plane, up it, and along the old wall's normal (the new wall's length).
-  fit.eigenvalues_m2 = Eigen::Vector3d(across_m2, std::max(solver.eigenvalues()(1), 0.0),
-                                       std::max(wall_normal.dot(covariance * wall_normal), 0.0));
-  fit.rmse_m = std::sqrt(across_m2);
-  fit.valid = fit.normal_unit.allFinite();
-  return fit;
 }
 
 }  // namespace
@@ -228,7 +214,10 @@ CornerLook::CornerFit CornerLook::fit_corner(const Corner& corner, double noise_
     if (out.gathered.moments.weight < kMinPoints) {
       return out;
     }
-    out.fit = fit_square_plane(out.gathered.moments, corner.wall_normal, corner.across);
+    // Square to the old wall: buildings have square corners (the paper's models); a wall
+    // glimpsed through pose errors is a fan of a few scans, whose own turn is noise. Its lean
+    // stays free: a fan that leans further than a wall may is not one.
+    out.fit = fit_plane_along_axis(out.gathered.moments, corner.wall_normal);
     if (!out.fit.valid ||
         std::abs(out.fit.normal_unit.dot(corner.across)) < std::cos(kMaxTurnDeg * kDegToRad)) {
       return out;
@@ -241,7 +230,8 @@ CornerLook::CornerFit CornerLook::fit_corner(const Corner& corner, double noise_
     out.offset_m = sign * out.fit.d_m;
     out.band_m = std::clamp(kBandPerRmse * out.fit.rmse_m, config_.inlier_distance_m,
                             config_.max_inlier_distance_m);
-    const double end_m = run_end_m<kBins>(bins, kBinM, kBehindM);
+    const double end_m =
+        run_end_m<kBins>(bins, kBinM, kBehindM, corner.max_start_m, corner.run_min_share);
     if (end_m < 0.0) {
       return out;
     }
@@ -255,7 +245,7 @@ CornerLook::CornerFit CornerLook::fit_corner(const Corner& corner, double noise_
 }
 
 bool CornerLook::try_corner(const Corner& corner, double noise_rmse_m,
-                            std::span<const NearPlane> near, PlaneMerger& merger) noexcept {
+                            std::span<const NearPlane> near, SectionPlane& found_plane) noexcept {
   CornerFit found = fit_corner(corner, noise_rmse_m, near);
   Corner looked = corner;
   if (found.wall_like) {
@@ -284,7 +274,7 @@ bool CornerLook::try_corner(const Corner& corner, double noise_rmse_m,
   const Gathered gathered = gather(looked, found.normal, found.offset_m, found.band_m,
                                    found.reach_to_m, near, kTaken, bins);
   SectionPlane plane;
-  plane.section = kLookSection;
+  plane.section = corner.section;
   plane.moments = gathered.moments.shifted(corner.corner_m);
   plane.normal_unit = fit.normal_unit;
   plane.d_m = fit.d_m + fit.normal_unit.dot(corner.corner_m);
@@ -300,7 +290,8 @@ bool CornerLook::try_corner(const Corner& corner, double noise_rmse_m,
   plane.corners_m = {
       at(gathered.reach_min_m, gathered.z_min_m), at(gathered.reach_max_m, gathered.z_min_m),
       at(gathered.reach_max_m, gathered.z_max_m), at(gathered.reach_min_m, gathered.z_max_m)};
-  return merger.add(plane);
+  found_plane = plane;
+  return true;
 }
 
 namespace {
@@ -331,7 +322,8 @@ bool CornerLook::open_corner(std::span<const msg::PlanePatch> planes,
     const CornerLook::Extent reach = extent_along(plane, corner.along);
     // A wall already found there: the corner is closed.
     if (std::abs(plane.normal.dot(corner.across)) >= cos_parallel && distance_m <= kSearchBandM &&
-        reach.high > corner_along + kMaxStartM && reach.low < corner_along + kMinLengthM) {
+        reach.high > corner_along + kMaxStartM &&
+        reach.low < corner_along + std::max(kMinLengthM, corner.max_start_m)) {
       return false;
     }
     // A wall parallel to the old one, facing the corner on its way: the building's far side,
@@ -348,13 +340,27 @@ bool CornerLook::open_corner(std::span<const msg::PlanePatch> planes,
   return true;
 }
 
+bool CornerLook::side_near(std::span<const msg::PlanePatch> planes, const Corner& corner) noexcept {
+  const double cos_parallel = std::cos(kMaxTurnDeg * kDegToRad);
+  const double corner_along = corner.along.dot(corner.corner_m);
+  return std::any_of(planes.begin(), planes.end(), [&](const msg::PlanePatch& plane) {
+    if (plane.kind != msg::PlaneKind::kWall || plane.polygon_size == 0 ||
+        std::abs(plane.normal.dot(corner.across)) < cos_parallel ||
+        std::abs(plane.normal.dot(corner.corner_m) - plane.d_m) > kStepClearM) {
+      return false;
+    }
+    const CornerLook::Extent reach = extent_along(plane, corner.along);
+    return reach.high > corner_along - kMaxStartM && reach.low < corner_along + kStepClearM;
+  });
+}
+
 std::size_t CornerLook::near_planes(std::span<const msg::PlanePatch> planes, const Corner& corner,
+                                    double across_m,
                                     std::span<NearPlane, kMaxNearPlanes> near) const noexcept {
-  // The region's box, generously: along its way, across its widest band, its heights.
+  // The region's box, generously: along its way, across it, its heights.
   const Eigen::Vector3d& c = corner.corner_m;
   Eigen::Vector3d low = c.cwiseMin(c + corner.reach_m * corner.along);
   Eigen::Vector3d high = c.cwiseMax(c + corner.reach_m * corner.along);
-  const double across_m = kSearchBandM + std::sin(kMaxTurnDeg * kDegToRad) * corner.reach_m + 1.0;
   low -= Eigen::Vector3d::Constant(across_m);
   high += Eigen::Vector3d::Constant(across_m);
   low.z() = corner.z_min_m;
@@ -424,10 +430,97 @@ int CornerLook::way_inside(const msg::PlanePatch& wall, const Eigen::Vector3d& o
   return 0;
 }
 
+namespace {
+
+// How far either side of a corner's way its square plane's points may lie: the widest band
+// and the most a wall may turn over the reach, with a metre to spare.
+double square_look_width_m(double reach_m) {
+  return kSearchBandM + std::sin(kMaxTurnDeg * kDegToRad) * reach_m + 1.0;
+}
+
+}  // namespace
+
+std::size_t CornerLook::step_depths(std::span<const msg::PlanePatch> planes, const Corner& corner,
+                                    std::span<double, kMaxStepDepths> depths_m) noexcept {
+  // Beyond the wall's end (from kBehindM back, along corner.across) and into the building
+  // (from kMinStepM, along corner.along), counted by depth.
+  const double reach_m = std::min(corner.reach_m, kMaxCornerReachM);
+  std::array<NearPlane, kMaxNearPlanes> near;
+  const std::size_t near_count = near_planes(planes, corner, reach_m + kBehindM, near);
+  Corner beyond = corner;
+  beyond.reach_from_m = kMinStepM;
+  const double half_width_m = 0.5 * (reach_m + kBehindM);
+  std::array<float, kBins> points_by_depth{};
+  static_cast<void>(gather(beyond, corner.across, half_width_m - kBehindM, half_width_m, reach_m,
+                           std::span(near).first(near_count), -1, points_by_depth));
+  // The peaks (two bins, a metre) with at least kMinPoints, nearest first: the nearest surface
+  // behind the end hides what lies further in (an L seen from its long side shows its notch
+  // before its far side).
+  const auto points_at = [&points_by_depth](std::size_t bin) {
+    return static_cast<double>(points_by_depth[bin] + points_by_depth[bin + 1]);
+  };
+  const double searched_bins = (reach_m - kMinStepM) / kBinM;
+  double all_points = 0.0;
+  for (const float points : points_by_depth) {
+    all_points += static_cast<double>(points);
+  }
+  const double least = std::max(kMinPoints, kStepPeakOverMean * 2.0 * all_points / searched_bins);
+  std::size_t count = 0;
+  for (std::size_t bin = 0; bin + 1 < kBins && count < depths_m.size(); ++bin) {
+    const double points = points_at(bin);
+    const std::size_t from = bin - std::min(bin, kStepPeakBins);
+    const std::size_t to = std::min(bin + kStepPeakBins, kBins - 2);
+    bool peak = points >= least;
+    for (std::size_t other = from; peak && other <= to; ++other) {
+      // Ties go to the nearer metre.
+      peak = other < bin ? points > points_at(other) : points >= points_at(other);
+    }
+    if (peak) {
+      depths_m[count++] = static_cast<double>(bin + 1) * kBinM - kBehindM;  // between the bins
+    }
+  }
+  return count;
+}
+
+bool CornerLook::try_step(std::span<const msg::PlanePatch> planes, const Corner& corner,
+                          double noise_rmse_m, SectionPlane& found_plane) noexcept {
+  if (side_near(planes, corner)) {
+    return false;
+  }
+  std::array<double, kMaxStepDepths> depths_m{};
+  const std::size_t depth_count = step_depths(planes, corner, depths_m);
+  for (const double depth_m : std::span(depths_m).first(depth_count)) {
+    // The step's wall faces the way the old one does and runs on beyond its end, from the
+    // corner of the notch: the corner look's fit from there.
+    Corner step = corner;
+    step.corner_m = corner.corner_m + depth_m * corner.along;
+    step.across = -corner.along;
+    step.along = corner.across;
+    step.wall_normal = corner.across;
+    step.reach_m = config_.corner_reach_m;
+    step.max_start_m = kStepMaxStartM;
+    step.run_min_share = kStepRunMinShare;
+    step.section = kStepSection;
+    if (!open_corner(planes, step)) {
+      continue;
+    }
+    std::array<NearPlane, kMaxNearPlanes> near;
+    const std::size_t near_count =
+        near_planes(planes, step, square_look_width_m(step.reach_m), near);
+    if (try_corner(step, noise_rmse_m, std::span(near).first(near_count), found_plane)) {
+      return true;
+    }
+  }
+  return false;
+}
+
 CornerLookCounters CornerLook::look(std::span<const msg::PlanePatch> planes, double surface_noise_m,
                                     VoxelGrid& voxels, PlaneMerger& merger) noexcept {
   voxels_ = &voxels;
   CornerLookCounters counters;
+  // Steps come to the merger after the sides: their section key is after the sides' key.
+  std::array<SectionPlane, kMaxSteps> steps;
+  std::size_t step_count = 0;
   for (const msg::PlanePatch& wall : planes) {
     if (wall.kind != msg::PlaneKind::kWall || wall.polygon_size == 0) {
       continue;
@@ -473,12 +566,23 @@ CornerLookCounters CornerLook::look(std::span<const msg::PlanePatch> planes, dou
         continue;
       }
       std::array<NearPlane, kMaxNearPlanes> near;
-      const std::size_t near_count = near_planes(planes, corner, near);
+      const std::size_t near_count =
+          near_planes(planes, corner, square_look_width_m(corner.reach_m), near);
       ++counters.corners_tried;
-      if (try_corner(corner, noise_m, std::span(near).first(near_count), merger)) {
-        ++counters.walls_found;
+      SectionPlane found;
+      if (try_corner(corner, noise_m, std::span(near).first(near_count), found)) {
+        counters.walls_found += merger.add(found) ? 1u : 0u;
+      } else if (try_step(planes, corner, noise_m, found)) {
+        if (step_count < steps.size()) {
+          steps[step_count++] = found;
+        } else {
+          ++counters.steps_dropped;
+        }
       }
     }
+  }
+  for (const SectionPlane& step : std::span(steps).first(step_count)) {
+    counters.steps_found += merger.add(step) ? 1u : 0u;
   }
   return counters;
 }

@@ -185,6 +185,7 @@ std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
     cache_.end(merger_.section_planes(), merger_.counters().section_planes_dropped_full == 0);
   }
   std::span<const msg::PlanePatch> planes = merger_.merge();
+  std::uint64_t steps_dropped = 0;
   // The corner look reads the merged walls; what it finds is merged with the rest. It is for
   // clouds blurred by pose errors (in a crisp one the votes find what it would), and not for
   // walls from a level laser's traces (no height to look along: walls_from_lines).
@@ -193,16 +194,18 @@ std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
     const CornerLookCounters corners =
         CornerLook(config_).look(planes, stats_.surface_noise_m, voxels_, merger_);
     stats_.corners_looked_at = corners.corners_tried;
-    stats_.corner_walls = corners.walls_found;
-    if (corners.walls_found > 0) {
+    stats_.corner_walls = corners.walls_found + corners.steps_found;
+    steps_dropped = corners.steps_dropped;
+    if (stats_.corner_walls > 0) {
       planes = merger_.merge();
     }
   }
   stats_.planes = planes.size();
   stats_.planes_excluded = merger_.counters().planes_excluded;
-  stats_.overflows =
-      sections_.counters().sections_dropped_full + sections_.counters().voxels_dropped_full +
-      merger_.counters().section_planes_dropped_full + merger_.counters().planes_dropped_full;
+  stats_.overflows = sections_.counters().sections_dropped_full +
+                     sections_.counters().voxels_dropped_full +
+                     merger_.counters().section_planes_dropped_full +
+                     merger_.counters().planes_dropped_full + steps_dropped;
   return planes;
 }
 

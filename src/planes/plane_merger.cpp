@@ -171,6 +171,9 @@ void PlaneMerger::build_candidates() noexcept {
     for (; i < plane_count_ && parent_[member_order_[i]] == root; ++i) {
       const SectionPlane& plane = planes_[member_order_[i]];
       candidate.moments.merge(plane.moments);
+      if (plane.section == kStepSection) {
+        add_step_normal(candidate, plane.normal_unit, plane.moments.weight);
+      }
       for (const Eigen::Vector3f& corner : plane.corners_m) {
         scratch_points_[corners++] = corner.cast<double>();
       }
@@ -179,7 +182,7 @@ void PlaneMerger::build_candidates() noexcept {
       ++counters_.planes_dropped_full;
       continue;
     }
-    candidate.fit = fit_of(candidate.moments);
+    candidate.fit = fit_candidate(candidate);
     if (!candidate.fit.valid) {
       continue;
     }
@@ -250,7 +253,10 @@ bool PlaneMerger::within_noise_slab(const Candidate& big, const Candidate& small
 
 void PlaneMerger::absorb(Candidate& big, const Candidate& small) noexcept {
   big.moments.merge(small.moments);
-  big.fit = fit_of(big.moments);
+  if (small.step_weight > 0.0) {
+    add_step_normal(big, small.step_normal_sum.normalized(), small.step_weight);
+  }
+  big.fit = fit_candidate(big);
   std::size_t n = 0;
   for (std::size_t i = 0; i < big.polygon_size; ++i) {
     scratch_points_[n++] = big.polygon_m[i];
@@ -321,6 +327,23 @@ bool PlaneMerger::excluded(const Eigen::Vector3d& normal_unit, double d_m) const
     }
   }
   return false;
+}
+
+void PlaneMerger::add_step_normal(Candidate& candidate, const Eigen::Vector3d& normal_unit,
+                                  double weight) noexcept {
+  const double sign = candidate.step_normal_sum.dot(normal_unit) < 0.0 ? -1.0 : 1.0;
+  candidate.step_normal_sum += sign * weight * normal_unit;
+  candidate.step_weight += weight;
+}
+
+PlaneFit PlaneMerger::fit_candidate(const Candidate& candidate) const noexcept {
+  // Steps hold most of its points: it runs parallel to the walls they stepped back from (the
+  // direction of their normals seen from above), its lean fitted.
+  const Eigen::Vector3d along = Eigen::Vector3d::UnitZ().cross(candidate.step_normal_sum);
+  if (candidate.step_weight >= kStepShareMin * candidate.moments.weight && along.norm() > 0.0) {
+    return fit_plane_along_axis(candidate.moments, along.normalized());
+  }
+  return fit_of(candidate.moments);
 }
 
 PlaneFit PlaneMerger::fit_of(const PointMoments& moments) const noexcept {

@@ -26,6 +26,32 @@ PlaneFit fit_plane(const PointMoments& moments) noexcept {
   return fit;
 }
 
+PlaneFit fit_plane_along_axis(const PointMoments& moments,
+                              const Eigen::Vector3d& axis_unit) noexcept {
+  PlaneFit fit;
+  if (moments.weight < 3.0) {
+    return fit;
+  }
+  fit.centroid_m = moments.mean();
+  const Eigen::Matrix3d covariance = moments.covariance();
+  // The normal is the direction of least spread among those square to the axis.
+  const Eigen::Vector3d e1 = axis_unit.unitOrthogonal();
+  const Eigen::Vector3d e2 = axis_unit.cross(e1);
+  Eigen::Matrix<double, 3, 2> basis;
+  basis << e1, e2;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> solver(basis.transpose() * covariance *
+                                                              basis);
+  const Eigen::Vector2d smallest = solver.eigenvectors().col(0);
+  fit.normal_unit = (smallest.x() * e1 + smallest.y() * e2).normalized();
+  fit.eigenvalues_m2 = Eigen::Vector3d(std::max(solver.eigenvalues()(0), 0.0),
+                                       std::max(solver.eigenvalues()(1), 0.0),
+                                       std::max(axis_unit.dot(covariance * axis_unit), 0.0));
+  fit.d_m = fit.normal_unit.dot(fit.centroid_m);
+  fit.rmse_m = std::sqrt(fit.eigenvalues_m2(0));
+  fit.valid = fit.normal_unit.allFinite();
+  return fit;
+}
+
 PlaneFit fit_vertical_plane(const PointMoments& moments) noexcept {
   PlaneFit fit;
   if (moments.weight < 3.0) {

@@ -3,6 +3,7 @@
 // flat. The planes list the look starts from is given, so each test says what it is about.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -206,6 +207,133 @@ TEST(CornerLook, ASlabThickerThanTheCloudsSurfacesIsNoWall) {
   EXPECT_EQ(looked.counters.corners_tried, 2u);
   EXPECT_EQ(looked.counters.walls_found, 0u);
   EXPECT_TRUE(looked.planes.empty());
+}
+
+// An L whose notch faces away from the street: the building stands on x in [0, 12] and y in
+// [0, 8] less the notch x in [8, 12], y in [4, 8]. Its front (y = 0) and its east side up to
+// the notch (x = 12, y in [0, 4]) were found; the notch's own side (y = 4) faces away from
+// every street and was never seen, and its back face (x = 8) only from far down the east
+// street, by the level laser through the notch: strokes at many heights, each moved by its
+// own pose error across the face (0.15 m) and sheared along it.
+constexpr double kNotchX = 8.0;
+
+struct NotchScene {
+  Scene scene;
+
+  NotchScene() {
+    scene.front_wall();
+    scene.street(-8.0f, -0.2f);
+    east_side();
+    east_ground();
+    notch_face();
+  }
+  void east_side() {  // x = 12, y in [0, 4], crisp
+    std::normal_distribution<float> noise(0.0f, 0.02f);
+    for (float y = 0.0f; y <= 4.0f; y += 0.05f) {
+      for (float z = 0.0f; z <= 6.0f; z += 0.05f) {
+        scene.points.emplace_back(12.0f + noise(scene.random), y, z);
+      }
+    }
+  }
+  void east_ground() {  // the street east of the building
+    std::normal_distribution<float> noise(0.0f, 0.02f);
+    for (float x = 12.2f; x <= 20.0f; x += 0.1f) {
+      for (float y = -8.0f; y <= 12.0f; y += 0.1f) {
+        scene.points.emplace_back(x, y, noise(scene.random));
+      }
+    }
+  }
+  void notch_face() {
+    std::normal_distribution<double> error(0.0, 0.15);
+    std::uniform_real_distribution<float> height(0.4f, 3.0f);
+    for (int scan = 0; scan < 60; ++scan) {
+      const double across_m = error(scene.random);
+      const auto shift_x = static_cast<float>(across_m);
+      const auto shift_y = static_cast<float>(3.0 * across_m);  // sheared along the face
+      const float z = height(scene.random);
+      for (float y = 4.3f; y <= 8.0f; y += 0.05f) {
+        scene.points.emplace_back(static_cast<float>(kNotchX) + shift_x, y + shift_y, z);
+      }
+    }
+  }
+  // The ground's fog behind the notch: a few points a metre along the face's line.
+  void fog_beyond() {
+    std::uniform_real_distribution<float> jitter(-0.1f, 0.1f);
+    for (float y = 8.5f; y <= 20.0f; y += 0.3f) {
+      scene.points.emplace_back(static_cast<float>(kNotchX) + jitter(scene.random), y,
+                                0.7f + jitter(scene.random));
+    }
+  }
+};
+
+msg::PlanePatch east_side_patch(double from_y, double to_y) {
+  return wall_patch({1, 0, 0}, 12.0, 0.1,
+                    {{{12, from_y, 0}, {12, to_y, 0}, {12, to_y, 6}, {12, from_y, 6}}});
+}
+
+TEST(CornerLook, FindsTheNotchOfAnLWhereItsSideEnds) {
+  const NotchScene notch;
+  const std::array planes{front_patch(), ground_patch(), east_side_patch(0.0, 4.0)};
+  const Looked looked = look_at(notch.scene, planes, 0.1);
+  EXPECT_EQ(looked.counters.walls_found, 0u) << "no side square to the side where it ends";
+  EXPECT_EQ(looked.counters.steps_found, 1u);
+  ASSERT_EQ(looked.planes.size(), 1u);
+  const msg::PlanePatch& face = looked.planes[0];
+  EXPECT_EQ(face.kind, msg::PlaneKind::kWall);
+  // Parallel to the side it stepped back from, seen from above: the shear of the strokes
+  // alone would turn a free least-squares fit by several degrees. Its lean is fitted (60
+  // strokes at random heights, each off by its own error: about 1.5 degrees).
+  EXPECT_LT(std::abs(std::atan2(face.normal.y(), face.normal.x())), 0.1 * kDeg);
+  EXPECT_GT(std::abs(face.normal.x()), std::cos(3.0 * kDeg));
+  EXPECT_NEAR(std::abs(face.d_m), kNotchX, 0.1);
+}
+
+TEST(CornerLook, TheNotchEndsWhereItsPointsDoNotWhereTheFogDoes) {
+  NotchScene notch;
+  notch.fog_beyond();
+  const std::array planes{front_patch(), ground_patch(), east_side_patch(0.0, 4.0)};
+  const Looked looked = look_at(notch.scene, planes, 0.1);
+  ASSERT_EQ(looked.planes.size(), 1u);
+  double y_max = -1e9;
+  for (std::size_t i = 0; i < looked.planes[0].polygon_size; ++i) {
+    y_max = std::max(y_max, looked.planes[0].polygon_m[i].y());
+  }
+  EXPECT_LT(y_max, 9.0) << "the strokes end at y = 8 m (and their shear)";
+}
+
+// A blurred side whose found end lies 1.2 m short of the front it meets, and a slab parallel
+// to the side in the street beyond its end (a row of parked vans, 4 m in from the side).
+Scene side_and_vans(bool with_front) {
+  Scene scene;
+  if (with_front) {
+    scene.front_wall();
+  }
+  scene.street(-8.0f, -0.2f);
+  std::normal_distribution<float> noise(0.0f, 0.05f);
+  for (float y = -6.0f; y <= -0.5f; y += 0.05f) {
+    for (float z = 0.3f; z <= 2.5f; z += 0.1f) {
+      scene.points.emplace_back(static_cast<float>(kNotchX) + noise(scene.random), y, z);
+    }
+  }
+  for (float x = 12.2f; x <= 20.0f; x += 0.1f) {
+    for (float y = -8.0f; y <= 8.0f; y += 0.1f) {
+      scene.points.emplace_back(x, y, noise(scene.random));
+    }
+  }
+  return scene;
+}
+
+TEST(CornerLook, NoStepWhereTheBuildingTurnsACornerShortOfTheWallsEnd) {
+  // The side's end is a corner of the building, for the front (found) stands there: not a
+  // step, though the vans stand where one could.
+  const std::array turns{front_patch(), ground_patch(), east_side_patch(1.2, 8.0)};
+  const Looked at_corner = look_at(side_and_vans(true), turns, 0.1);
+  EXPECT_EQ(at_corner.counters.steps_found, 0u);
+  // Without the front, nothing says the building turns there, and the vans are taken for
+  // the step they could be.
+  const std::array open{ground_patch(), east_side_patch(1.2, 8.0)};
+  const Looked stepped = look_at(side_and_vans(false), open, 0.1);
+  EXPECT_EQ(stepped.counters.steps_found, 1u);
 }
 
 }  // namespace

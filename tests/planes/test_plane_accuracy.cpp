@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cstdio>
 #include <numbers>
 #include <string>
@@ -238,15 +239,16 @@ TEST(PlaneRobustness, UscBlockWithPoseNoiseOnATiltedWorld) {
   EXPECT_EQ(run.score.faces_reported_twice, 0u);
 }
 
-// partial's floor, just below the issue's 90 %: 26 of 29 faces, 26 of 27 planes real. Its
-// ground (seen only by the level laser, at grazing range), a side hidden behind a hedge and an
-// L's notch that no wall found leads to are lost (docs/planes.md, Robustness, says why).
+// The issue's 90 %: 27 of 29 faces, 27 of 28 planes real. The corner look finds the sides
+// only glimpsed and the north L's notch (a step back from its east side); its ground (seen only
+// by the level laser, at grazing range) and a side hidden behind a hedge are lost
+// (docs/planes.md, Robustness, says why).
 TEST(PlaneRobustness, PartialWithPoseNoise) {
 #if defined(BLOCKMAP_QUICK_WORLDS)
   GTEST_SKIP() << "the optimized host trees drive partial with pose noise";
 #endif
   const WorldRun run = detect_in_world("partial", kScanPoseNoise);
-  EXPECT_GE(run.score.recall(), 0.85);
+  EXPECT_GE(run.score.recall(), 0.90);
   EXPECT_GE(run.score.precision(), 0.95);
   EXPECT_EQ(run.score.faces_reported_twice, 0u);
 }
@@ -265,7 +267,7 @@ TEST(PlaneRobustness, BenningWithPoseNoise) {
 
 // The figures of docs/planes.md over seeds 1-6 (each seed draws the world's clutter, the lasers'
 // noise and the pose errors), with and without the corner look: a few minutes, so on demand
-// (--gtest_also_run_disabled_tests). It holds what every seed reached on 2026-11-24.
+// (--gtest_also_run_disabled_tests). It holds what every seed reached on 2026-11-25.
 TEST(PlaneRobustness, DISABLED_BenningAndPartialWithPoseNoiseOverSeeds1To6) {
   for (const bool corner_look : {false, true}) {
     PlanesConfig config = city_config();
@@ -278,11 +280,44 @@ TEST(PlaneRobustness, DISABLED_BenningAndPartialWithPoseNoiseOverSeeds1To6) {
       if (corner_look) {
         EXPECT_GE(benning.score.recall(), 0.90) << "seed " << seed;
         EXPECT_GE(benning.score.precision(), 0.90) << "seed " << seed;
-        EXPECT_GE(partial.score.recall(), 0.82) << "seed " << seed;
+        EXPECT_GE(partial.score.recall(), 0.85) << "seed " << seed;
         EXPECT_GE(partial.score.precision(), 0.85) << "seed " << seed;
       }
     }
   }
+}
+
+// The table of docs/planes.md (Robustness): each world under each pose noise, and the three
+// of the issue at once (0.5 deg per scan on the tilted world). About a minute, on demand
+// (--gtest_also_run_disabled_tests); it prints the table at the end.
+TEST(PlaneRobustness, DISABLED_TheTableOfDocsPlanes) {
+  constexpr double kDegToRad = std::numbers::pi / 180.0;
+  struct Row {
+    const char* name = "";
+    hal::sim::PoseNoise noise;
+    WorldTilt tilt;
+  };
+  const std::array rows{
+      Row{"0.5 deg, 5 cm, per scan", kScanPoseNoise, {}},
+      Row{"0.5 deg, 5 cm, drifting, 1 s", {0.5 * kDegToRad, 0.05, 1.0}, {}},
+      Row{"0.5 deg, 5 cm, drifting, 10 s", {0.5 * kDegToRad, 0.05, 10.0}, {}},
+      Row{"0.25 deg, 2.5 cm, per scan", {0.25 * kDegToRad, 0.025, 0.0}, {}},
+      Row{"0.5 deg, 5 cm, per scan, tilted world", kScanPoseNoise, {1.0, 3.0}},
+  };
+  std::string table = "| noise | usc_block | benning | partial |\n|---|---|---|---|\n";
+  for (const Row& row : rows) {
+    table += std::string("| ") + row.name;
+    for (const char* world : {"usc_block", "benning", "partial"}) {
+      const testing::PlaneScore s = detect_in_world(world, row.noise, row.tilt).score;
+      table += " | " + std::to_string(s.faces_found) + "/" + std::to_string(s.faces_considered) +
+               ", " + std::to_string(s.structural_real) + "/" + std::to_string(s.structural_planes);
+      if (s.faces_reported_twice > 0) {
+        table += ", " + std::to_string(s.faces_reported_twice) + " twice";
+      }
+    }
+    table += " |\n";
+  }
+  std::printf("%s", table.c_str());
 }
 
 }  // namespace

@@ -6,8 +6,11 @@
 // building (the side of the wall a laser saw nothing behind): it fits the free samples near
 // that plane by least squares, and keeps the fit only when its points say so (enough of
 // them, standing upright, flat within the wall's own noise, in one piece from the corner;
-// above a hedge that stands in front of it when the two disagree). The hypothesis only says
-// where to look; the plane is where its points are.
+// above a hedge that stands in front of it when the two disagree). Where no side is found, the
+// building may step back instead (an L's or a T's notch, whose side faces away from the
+// street): the look then tries a wall parallel to the first, set back into the building, that
+// begins where the first one ends. The hypothesis only says where to look; the plane is where
+// its points are.
 #pragma once
 
 #include <cstdint>
@@ -26,11 +29,15 @@ namespace blockmap::planes {
 
 struct CornerLookCounters {
   std::uint64_t corners_tried = 0;  // wall ends with no wall found there
-  std::uint64_t walls_found = 0;
+  std::uint64_t walls_found = 0;    // sides square to the wall, at its end
+  std::uint64_t steps_found = 0;    // walls parallel to it, set back, beyond its end
+  std::uint64_t steps_dropped = 0;  // more than CornerLook::kMaxSteps of them
 };
 
 class CornerLook {
  public:
+  static constexpr std::size_t kMaxSteps = 16;  // steps found in one look
+
   explicit CornerLook(const PlanesConfig& config) noexcept : config_(config) {}
 
   // Looks at the corners of the walls among `planes` (the merged planes; the surface noise is
@@ -55,10 +62,13 @@ class CornerLook {
     Eigen::Vector3d wall_normal = Eigen::Vector3d::UnitY();  // the old wall's: square to it
     double z_min_m = 0.0;
     double z_max_m = 0.0;
-    double wall_top_m = 0.0;     // the old wall's
-    double reach_m = 0.0;        // how far along its way it may run
-    double reach_from_m = -0.5;  // and from where (behind the corner: a blurred end)
-    bool free_only = true;       // false: samples that planes took count too
+    double wall_top_m = 0.0;         // the old wall's
+    double reach_m = 0.0;            // how far along its way it may run
+    double reach_from_m = -0.5;      // and from where (behind the corner: a blurred end)
+    double max_start_m = 1.5;        // its points begin at most this far along its way (kMaxStartM)
+    double run_min_share = 0.0;      // and run on through bins with this share of their mean points
+    CellKey section = kLookSection;  // the key of the section plane it makes
+    bool free_only = true;           // false: samples that planes took count too
   };
   // What gather() found: the points' moments about the corner, and their extent.
   struct Gathered {
@@ -90,9 +100,15 @@ class CornerLook {
   // building's far side when a wall found there faces the corner.
   [[nodiscard]] bool open_corner(std::span<const msg::PlanePatch> planes,
                                  Corner& corner) const noexcept;
-  // The planes whose boxes reach into the corner's region, at most kMaxNearPlanes.
+  // True when a wall found already stands square to the corner's wall within kStepClearM of
+  // the corner and beside it: the building turns there (the end of a blurred wall lies up to a
+  // metre or two short of its corner), so it does not step back.
+  [[nodiscard]] static bool side_near(std::span<const msg::PlanePatch> planes,
+                                      const Corner& corner) noexcept;
+  // The planes whose boxes reach into the corner's region, at most kMaxNearPlanes; the region
+  // reaches `across_m` either side of the corner's way.
   [[nodiscard]] std::size_t near_planes(std::span<const msg::PlanePatch> planes,
-                                        const Corner& corner,
+                                        const Corner& corner, double across_m,
                                         std::span<NearPlane, kMaxNearPlanes> near) const noexcept;
   // The samples near the plane n . (p - corner) = offset_m: at most band_m from it, between
   // the corner's reach_from_m and reach_to_m along its way, within its heights, outside the
@@ -114,9 +130,18 @@ class CornerLook {
   };
   CornerFit fit_corner(const Corner& corner, double noise_rmse_m,
                        std::span<const NearPlane> near) noexcept;
-  // Tries one corner; true when a wall was found there (and added to the merger).
+  // Tries one corner; true when a wall was found there (its section plane in `found_plane`).
   bool try_corner(const Corner& corner, double noise_rmse_m, std::span<const NearPlane> near,
-                  PlaneMerger& merger) noexcept;
+                  SectionPlane& found_plane) noexcept;
+  // At a corner where no side was found: the depths into the building at which the free
+  // samples beyond the wall's end are denser than either side, nearest first; how many.
+  static constexpr std::size_t kMaxStepDepths = 4;
+  std::size_t step_depths(std::span<const msg::PlanePatch> planes, const Corner& corner,
+                          std::span<double, kMaxStepDepths> depths_m) noexcept;
+  // Tries a wall set back by each of step_depths() in turn, parallel to the corner's wall and
+  // running on beyond its end; true when one was found (its section plane in `found_plane`).
+  bool try_step(std::span<const msg::PlanePatch> planes, const Corner& corner, double noise_rmse_m,
+                SectionPlane& found_plane) noexcept;
 
   const PlanesConfig& config_;
   VoxelGrid* voxels_ = nullptr;

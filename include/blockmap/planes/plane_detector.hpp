@@ -45,7 +45,7 @@ struct DetectionStats {
   std::uint64_t planes = 0;
   std::uint64_t planes_excluded = 0;    // known not to be surfaces (set_exclusions)
   std::uint64_t corners_looked_at = 0;  // wall ends the corner look tried (CornerLook)
-  std::uint64_t corner_walls = 0;       // walls it found there
+  std::uint64_t corner_walls = 0;       // walls it found there (sides and steps)
   double surface_noise_m = 0.0;         // VoxelGrid::surface_noise_m(): how blurred the cloud is
   std::uint64_t shapes_reused = 0;      // samples whose fine shape was kept (keep_shapes)
 };

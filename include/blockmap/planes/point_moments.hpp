@@ -53,6 +53,12 @@ struct PlaneFit {
 
 [[nodiscard]] PlaneFit fit_plane(const PointMoments& moments) noexcept;
 
+// The least-squares plane that contains the direction `axis_unit` (its normal square to it).
+// eigenvalues_m2 holds the points' spread across the plane, in it square to the axis, and
+// along the axis.
+[[nodiscard]] PlaneFit fit_plane_along_axis(const PointMoments& moments,
+                                            const Eigen::Vector3d& axis_unit) noexcept;
+
 // The least-squares vertical plane: the line that best fits the points seen from above.
 // eigenvalues_m2 holds the points' horizontal spread across and along the plane, then their
 // vertical spread.
