@@ -37,10 +37,11 @@ struct SectionPlane {
 // section's key, and no neighbour of one (a packed key never has its top bit set).
 inline constexpr CellKey kLookSection = CellKey{1} << 63;
 // The key of a wall the look found set back from another and parallel to it (a step, an L's
-// notch). A merged plane most of whose points came from steps keeps their normal: such points
-// are a slab blurred by pose errors and sheared along the line of sight, whose least-squares
-// yaw is off by degrees where the parallel to the wall is exact.
-// It comes after every look's key and is no neighbour of one (the neighbour offsets are small).
+// notch). A merged plane most of whose points came from steps keeps their direction seen from
+// above, its lean fitted: such points are a slab blurred by pose errors and sheared along the
+// line of sight, whose least-squares yaw is off by degrees where the parallel to the wall is
+// exact. The key comes after every look's and is no neighbour of one (the neighbour offsets
+// are small).
 inline constexpr CellKey kStepSection = kLookSection | (CellKey{1} << 62);
 
 // A plane known not to be a surface: a laser's own scan plane. A laser sweeping foliage or
@@ -109,7 +110,7 @@ class PlaneMerger {
     double step_weight = 0.0;
     Eigen::Vector3d step_normal_sum = Eigen::Vector3d::Zero();
   };
-  // A candidate whose steps hold at least this share of its points keeps their normal.
+  // A candidate whose steps hold at least this share of its points keeps their direction.
   static constexpr double kStepShareMin = 0.5;
   static void add_step_normal(Candidate& candidate, const Eigen::Vector3d& normal_unit,
                               double weight) noexcept;
