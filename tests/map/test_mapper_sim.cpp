@@ -60,10 +60,11 @@ struct MapperRun {
 
 MapperRun map_world(const std::string& world, PoseSource poses, double duration_s = kDurationS,
                     bool incremental_extraction = true, double pose_lag_s = 0.0,
-                    double barren_section_growth = planes::PlanesConfig{}.barren_section_growth) {
+                    double barren_section_growth = planes::PlanesConfig{}.barren_section_growth,
+                    std::uint64_t seed = 3) {
   const hal::sim::RobotSpec robot = hal::sim::load_robot("paper_rmp");
   hal::sim::SimOptions options;
-  options.seed = 3;
+  options.seed = seed;
   options.max_duration_s = duration_s;
   auto simulated =
       std::make_unique<hal::sim::SimulatedRobot>(hal::sim::load_world(world), robot, options);
@@ -432,6 +433,57 @@ TEST(MapperSim, BenningBuildingsWithLaggedFilterPoses) {
   EXPECT_GE(right_shapes, 5u);
   EXPECT_GT(iou_sum / static_cast<double>(matches.size()), 0.72);
   EXPECT_EQ(run.counters.scans_refused_full, 0u);
+}
+
+// docs/buildings.md's table of benning's buildings with the lagged filter poses over the
+// simulation's seeds 1-10 (the receiver's errors differ by seed; about 80 s): for each truth
+// building, the best-overlapping fitted footprint as mapped, and again after the whole map is
+// laid onto the truth by one turn and shift (align_planes_to_faces, as the planes are scored).
+// The second says how much of the loss is where the GPS put the whole map, and how much is the
+// map's own shape: buildings drawn at different times moved by different amounts.
+TEST(MapperSim, DISABLED_TheTableOfBenningBuildingsOverSeeds) {
+  const hal::sim::World world = hal::sim::load_world("benning");
+  std::size_t shapes_right = 0;
+  std::size_t buildings_scored = 0;
+  for (std::uint64_t seed = 1; seed <= 10; ++seed) {
+    const MapperRun run = map_world("benning", PoseSource::kLocalizer, kDurationS, true, 30.0,
+                                    planes::PlanesConfig{}.barren_section_growth, seed);
+    const testing::MapAlignment alignment =
+        testing::align_planes_to_faces(run.faces, run.final_planes);
+    std::printf("seed %llu: the map laid onto the truth by %.2f deg and (%.2f %.2f) m, %zu pairs\n",
+                static_cast<unsigned long long>(seed), alignment.yaw_rad * 180.0 / std::numbers::pi,
+                alignment.shift_m.x(), alignment.shift_m.y(), alignment.pairs);
+    for (const hal::sim::Building& truth : world.buildings) {
+      BuildingMatch mapped;
+      BuildingMatch aligned;
+      for (const buildings::Building& building : run.buildings) {
+        std::vector<Eigen::Vector2d> footprint_m(
+            building.footprint_m.begin(),
+            building.footprint_m.begin() + static_cast<std::ptrdiff_t>(building.footprint_size));
+        const auto keep_best = [&](BuildingMatch& match) {
+          const double iou = testing::footprint_iou(footprint_m, truth.footprint_m);
+          if (iou > match.iou) {
+            match.iou = iou;
+            match.shape = std::string(buildings::to_string(building.shape));
+          }
+        };
+        keep_best(mapped);
+        for (Eigen::Vector2d& corner_m : footprint_m) {
+          corner_m = alignment.apply(Eigen::Vector3d(corner_m.x(), corner_m.y(), 0.0)).head<2>();
+        }
+        keep_best(aligned);
+      }
+      std::printf("  truth building %d %s: %s, IoU %.3f; aligned %s, IoU %.3f\n", truth.id,
+                  hal::sim::to_string(truth.shape), mapped.shape.c_str(), mapped.iou,
+                  aligned.shape.c_str(), aligned.iou);
+      shapes_right += mapped.shape == hal::sim::to_string(truth.shape) ? 1U : 0U;
+      ++buildings_scored;
+      // 2026-11-25: 0.49-0.92 (the lowest with a shape taken for another).
+      EXPECT_GT(mapped.iou, 0.45) << "seed " << seed << ", truth building " << truth.id;
+    }
+  }
+  std::printf("shapes right: %zu of %zu\n", shapes_right, buildings_scored);
+  EXPECT_GE(shapes_right, 52u);  // 54 of 60 on 2026-11-25
 }
 
 TEST(MapperSim, UscBlockWithFilterPoses) {
