@@ -572,6 +572,85 @@ void BuildingFitter::merge_parallel_pieces() noexcept {
   }
 }
 
+void BuildingFitter::trim_past_spanning_walls(const Box& box) noexcept {
+  // A wall's plane takes in what stands in line with it a little way past its end (the
+  // merger joins coplanar planes across gaps, as a tree breaks a wall): a tree's canopy or a
+  // parked car. With the filter's poses such a wall ran 3-5 m past its building's corner and
+  // made a rectangle an L or T. A wall that spans the building across (its ends within the
+  // fit tolerance of both sides, most of its length) is an outer wall of a rectangle, an L
+  // or a T (a notch's or a bar's inner wall spans only part of it): nothing of the building
+  // lies beyond the outermost such walls.
+  constexpr double kMinSpanShare = 0.75;
+  const double tolerance_m = config_.fit_tolerance_m;
+  for (int across = 0; across < 2; ++across) {
+    const int along = 1 - across;  // the direction the spanning walls run
+    const auto a = static_cast<std::size_t>(along);
+    const double extent_m = box.hi[a] - box.lo[a];
+    double low_m = std::numeric_limits<double>::infinity();
+    double high_m = -low_m;
+    for (std::size_t i = 0; i < piece_count_; ++i) {
+      const Piece& piece = pieces_[i];
+      const bool spans =
+          piece.axis == along && piece.trusted_ends && piece.lo <= box.lo[a] + tolerance_m &&
+          piece.hi >= box.hi[a] - tolerance_m && piece.hi - piece.lo >= kMinSpanShare * extent_m;
+      if (spans) {
+        low_m = std::min(low_m, piece.level);
+        high_m = std::max(high_m, piece.level);
+      }
+    }
+    if (!(high_m >= low_m)) {
+      continue;  // no wall spans the building: nothing is known to be beyond
+    }
+    if (high_m - low_m <= tolerance_m) {
+      // One such wall (an L's or a T's outer wall; the one across from it is broken by a
+      // notch or is the stem's end): the building is on the side that holds most of the
+      // walls running across it.
+      const double level_m = 0.5 * (low_m + high_m);
+      double below_m = 0.0;
+      double above_m = 0.0;
+      for (std::size_t i = 0; i < piece_count_; ++i) {
+        const Piece& piece = pieces_[i];
+        if (piece.axis == across) {
+          below_m += std::max(0.0, std::min(piece.hi, level_m) - piece.lo);
+          above_m += std::max(0.0, piece.hi - std::max(piece.lo, level_m));
+        }
+      }
+      constexpr double kInsideShare = 2.0;  // this many times what lies on the other side
+      if (below_m >= kInsideShare * above_m) {
+        low_m = -std::numeric_limits<double>::infinity();
+      } else if (above_m >= kInsideShare * below_m) {
+        high_m = std::numeric_limits<double>::infinity();
+      } else {
+        continue;
+      }
+    }
+    // A piece along `across` that runs on past one of them, less far than it runs between
+    // them, is cut there. (One that lies mostly beyond is another wall: two passes of one
+    // wall a little more than parallel_merge_offset_m apart both span the building, and the
+    // building's other walls run on past both. One that runs on less than the tolerance may
+    // be right where the spanning wall is not: walls drawn at different times disagree by
+    // the pose error, and the model explains it either way.)
+    for (std::size_t i = 0; i < piece_count_; ++i) {
+      Piece& piece = pieces_[i];
+      if (piece.axis != across) {
+        continue;
+      }
+      const double between_m = std::min(piece.hi, high_m) - std::max(piece.lo, low_m);
+      const double beyond_m = std::max(0.0, low_m - piece.lo) + std::max(0.0, piece.hi - high_m);
+      if (beyond_m <= tolerance_m || beyond_m >= between_m) {
+        continue;
+      }
+      piece.lo = std::max(piece.lo, low_m);
+      piece.hi = std::min(piece.hi, high_m);
+      const auto k = static_cast<Eigen::Index>(across);
+      piece.a[k] = piece.lo;
+      piece.a[1 - k] = piece.level;
+      piece.b[k] = piece.hi;
+      piece.b[1 - k] = piece.level;
+    }
+  }
+}
+
 BuildingFitter::Box BuildingFitter::bounding_box() const noexcept {
   const std::span<const Piece> pieces = pieces_.first(piece_count_);
   Box box;
@@ -962,6 +1041,9 @@ bool BuildingFitter::fit_group(std::span<const std::uint32_t> members,
   const double axis_rad = dominant_axis(members);
   to_pieces(members, axis_rad);
   merge_parallel_pieces();
+  if (piece_count_ > 0) {
+    trim_past_spanning_walls(bounding_box());
+  }
 
   // A building needs a wall (low planes only join one) and a corner: walls along both axes.
   bool has_tall_wall = false;
@@ -1183,6 +1265,9 @@ bool BuildingFitter::fit_block(const BlockTracer::Block& block,
   const double axis_rad = tracer_.long_axis(block, dominant_axis(members));
   to_pieces(members, axis_rad);
   merge_parallel_pieces();
+  if (piece_count_ > 0) {
+    trim_past_spanning_walls(bounding_box());
+  }
   for (std::size_t p = 0; p < piece_count_; ++p) {
     const Piece& piece = pieces_[p];
     side_walls_[p] = {piece.axis, piece.level, piece.lo, piece.hi};

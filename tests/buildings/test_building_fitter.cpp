@@ -2,6 +2,7 @@
 // draws, and which walls it marks virtual (seed, section IV).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <vector>
 
 #include "blockmap/buildings/building_fitter.hpp"
@@ -138,6 +139,49 @@ TEST_F(BuildingFitterTest, ARectangleSeenWholeStaysARectangleEvenWithGaps) {
     }
   }
   EXPECT_GT(testing::footprint_iou(footprint(building), plan), 0.98);
+}
+
+// With the filter's poses a wall's plane took in a tree's canopy or a parked car standing in
+// line with it, 3-5 m past the building's corner (benning, seeds 4 and 6): the rectangle came
+// out an L. The front and back span the building, so nothing of it lies beyond them.
+TEST_F(BuildingFitterTest, AWallRunningOnPastAFullFrontLeavesARectangle) {
+  const std::vector<Vector2d> plan = kRectPlan;
+  std::vector<msg::PlanePatch> planes = seen_walls(plan, {0, 1, 2});
+  planes.push_back(vertical_plane({-10.0, 6.0}, {-10.0, -11.0}, 0.0, 9.0, 10));  // 5 m past
+  const auto buildings = fit(planes);
+  ASSERT_EQ(buildings.size(), 1u);
+  const Building& building = buildings[0];
+  EXPECT_EQ(building.shape, BuildingShape::kRect);
+  EXPECT_GT(testing::footprint_iou(footprint(building), plan), 0.98);
+  for (std::size_t w = 0; w < building.wall_count; ++w) {
+    EXPECT_GT(std::min(building.walls[w].p0_m.y(), building.walls[w].p1_m.y()), -6.5)
+        << "wall " << w << " runs on past the front";
+  }
+}
+
+// An L spans its box across only with its outer walls, one each way: the building is on the
+// side that holds its other walls. Here a car parked in line with the front runs it 5 m past
+// the west wall (benning seed 1: the L at (70, 40) came out a T).
+TEST_F(BuildingFitterTest, AFrontRunningOnPastAnLsOuterWallLeavesTheL) {
+  const std::vector<Vector2d> plan = placed(kLPlan, 0.0, {0.0, 0.0});
+  std::vector<msg::PlanePatch> planes = seen_walls(plan, {1, 2, 3, 4, 5});
+  planes.push_back(vertical_plane({-15.0, -7.0}, {10.0, -7.0}, 0.0, 9.0, 10));
+  const auto buildings = fit(planes);
+  ASSERT_EQ(buildings.size(), 1u);
+  EXPECT_EQ(buildings[0].shape, BuildingShape::kL);
+  EXPECT_GT(testing::footprint_iou(footprint(buildings[0]), plan), 0.97);
+}
+
+// Two passes of the west wall a little more than parallel_merge_offset_m apart both span the
+// building; its front and back run on past both, and are not cut to the gap between them.
+TEST_F(BuildingFitterTest, TwoPassesOfOneWallDoNotCutTheBuildingToTheirGap) {
+  const std::vector<Vector2d> plan = kRectPlan;
+  std::vector<msg::PlanePatch> planes = seen_walls(plan, {0, 1, 2, 3});
+  planes.push_back(vertical_plane({-7.8, 6.0}, {-7.8, -6.0}, 0.0, 9.0, 10));
+  const auto buildings = fit(planes);
+  ASSERT_EQ(buildings.size(), 1u);
+  EXPECT_EQ(buildings[0].shape, BuildingShape::kRect);
+  EXPECT_GT(testing::footprint_iou(footprint(buildings[0]), plan), 0.98);
 }
 
 TEST_F(BuildingFitterTest, TheRoofGivesTheHeight) {

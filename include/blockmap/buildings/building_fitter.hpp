@@ -130,6 +130,9 @@ class BuildingFitter {
   bool fit_group(std::span<const std::uint32_t> members, Building& building) noexcept;
   void to_pieces(std::span<const std::uint32_t> members, double axis_rad) noexcept;
   void merge_parallel_pieces() noexcept;
+  // Cuts the pieces that run on past the outermost wall spanning the building across them:
+  // what lies beyond a building's full front is not the building (trim_past_spanning_walls).
+  void trim_past_spanning_walls(const Box& box) noexcept;
   [[nodiscard]] Box bounding_box() const noexcept;
   void propose_models(const Box& box) noexcept;
   // An L: the box with the notch at corner (side_u, side_v) (0: lo, 1: hi).
