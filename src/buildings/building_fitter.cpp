@@ -630,8 +630,19 @@ void BuildingFitter::trim_past_spanning_walls(const Box& box) noexcept {
     // building's other walls run on past both. One that runs on less than the tolerance may
     // be right where the spanning wall is not: walls drawn at different times disagree by
     // the pose error, and the model explains it either way.)
-    for (std::size_t i = 0; i < piece_count_; ++i) {
+    // A low piece wholly beyond (a parked car's faces, a hedge) is dropped; a tall one may be
+    // another building's wall grouped with this one, and the model weighs it.
+    for (std::size_t i = 0; i < piece_count_;) {
       Piece& piece = pieces_[i];
+      const bool low = !segments_[piece.segment].is_tall;
+      const bool parallel_beyond = piece.axis == along && (piece.level < low_m - tolerance_m ||
+                                                           piece.level > high_m + tolerance_m);
+      const bool across_beyond = piece.axis == across && (piece.hi <= low_m || piece.lo >= high_m);
+      if (low && (parallel_beyond || across_beyond)) {
+        pieces_[i] = pieces_[--piece_count_];
+        continue;
+      }
+      ++i;
       if (piece.axis != across) {
         continue;
       }

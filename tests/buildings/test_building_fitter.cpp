@@ -172,6 +172,20 @@ TEST_F(BuildingFitterTest, AFrontRunningOnPastAnLsOuterWallLeavesTheL) {
   EXPECT_GT(testing::footprint_iou(footprint(buildings[0]), plan), 0.97);
 }
 
+// A car parked against a building's outer wall, its two faces low planes joined to the
+// building's walls (benning seed 3: a car beyond the L at (70, 40) made a bump of its
+// footprint). Nothing of a building lies beyond a wall that spans it.
+TEST_F(BuildingFitterTest, ACarBeyondAnOuterWallIsNoPartOfTheBuilding) {
+  const std::vector<Vector2d> plan = kRectPlan;
+  std::vector<msg::PlanePatch> planes = seen_walls(plan, {0, 1, 2, 3});
+  planes.push_back(vertical_plane({11.0, 3.5}, {15.0, 3.5}, 0.0, 1.6, 20, msg::PlaneKind::kOther));
+  planes.push_back(vertical_plane({15.0, 3.5}, {15.0, 5.3}, 0.0, 1.6, 21, msg::PlaneKind::kOther));
+  const auto buildings = fit(planes);
+  ASSERT_EQ(buildings.size(), 1u);
+  EXPECT_EQ(buildings[0].shape, BuildingShape::kRect);
+  EXPECT_GT(testing::footprint_iou(footprint(buildings[0]), plan), 0.98);
+}
+
 // Two passes of the west wall a little more than parallel_merge_offset_m apart both span the
 // building; its front and back run on past both, and are not cut to the gap between them.
 TEST_F(BuildingFitterTest, TwoPassesOfOneWallDoNotCutTheBuildingToTheirGap) {

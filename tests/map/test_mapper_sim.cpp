@@ -412,9 +412,10 @@ TEST(MapperSim, UscBlockWithLaggedFilterPoses) {
 }
 
 // benning's buildings from scans drawn 30 s late (docs/buildings.md): the shapes come right
-// where the live poses bent them. Measured on the whole path, seed 3: 5 of 6 shapes right,
-// IoU 0.60-0.83, mean 0.75 (drawn live: 3 of 6, 0.33-0.80, mean 0.65). The 0.85
-// still waits on the smoothed path's metre of absolute error.
+// where the live poses bent them. Measured on the whole path, seed 3: 6 of 6 shapes right,
+// IoU 0.68-0.83, mean 0.76 (2026-11-25, with walls cut at a full front; drawn live: 3 of 6,
+// 0.33-0.80, mean 0.65). The 0.85 still waits on the smoothed path's metre of
+// absolute error.
 TEST(MapperSim, BenningBuildingsWithLaggedFilterPoses) {
 #if defined(BLOCKMAP_QUICK_WORLDS)
   GTEST_SKIP() << "the optimized host trees drive benning with the lagged poses";
@@ -427,11 +428,11 @@ TEST(MapperSim, BenningBuildingsWithLaggedFilterPoses) {
   for (const BuildingMatch& match : matches) {
     right_shapes += match.shape == match.truth_shape ? 1U : 0U;
     iou_sum += match.iou;
-    EXPECT_GT(match.iou, 0.55) << "truth building " << match.truth_id;
+    EXPECT_GT(match.iou, 0.62) << "truth building " << match.truth_id;
   }
   ASSERT_EQ(matches.size(), 6u);
   EXPECT_GE(right_shapes, 5u);
-  EXPECT_GT(iou_sum / static_cast<double>(matches.size()), 0.72);
+  EXPECT_GT(iou_sum / static_cast<double>(matches.size()), 0.74);
   EXPECT_EQ(run.counters.scans_refused_full, 0u);
 }
 
