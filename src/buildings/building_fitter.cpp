@@ -1276,9 +1276,6 @@ bool BuildingFitter::fit_block(const BlockTracer::Block& block,
   const double axis_rad = tracer_.long_axis(block, dominant_axis(members));
   to_pieces(members, axis_rad);
   merge_parallel_pieces();
-  if (piece_count_ > 0) {
-    trim_past_spanning_walls(bounding_box());
-  }
   for (std::size_t p = 0; p < piece_count_; ++p) {
     const Piece& piece = pieces_[p];
     side_walls_[p] = {piece.axis, piece.level, piece.lo, piece.hi};
