@@ -101,6 +101,7 @@ void SectionCache::invalidate() noexcept {
   entry_count_[1] = 0;
   block_count_ = 0;
   valid_ = false;
+  signatures_valid_ = false;
 }
 
 std::uint32_t SectionCache::offset_code(CellKey section, CellKey block_key) noexcept {
@@ -148,12 +149,22 @@ void SectionCache::begin(const VoxelGrid& grid, std::uint64_t salt) noexcept {
   block_count_ = std::max(block_count_, grid.block_count());
   for (std::uint32_t block = 0; block < grid.block_count(); ++block) {
     // An erased block's index, empty or holding another block: nothing of it was taken.
-    if (grid.live_mask(block) == 0 || block_keys_[block] != grid.block_key(block)) {
+    const bool other_block =
+        grid.live_mask(block) == 0 || block_keys_[block] != grid.block_key(block);
+    if (other_block) {
       forget_block(block);
       block_keys_[block] = grid.live_mask(block) == 0 ? kNoCell : grid.block_key(block);
     }
-    block_signatures_[block] = sign_block(grid, block);
+    // Signing reads every sample; a block whose samples are as they were keeps its signature.
+    if (!signatures_valid_ || other_block || grid.samples_changed(block)) {
+      block_signatures_[block] = sign_block(grid, block);
+    }
+#ifndef NDEBUG
+    BLOCKMAP_CHECK_MSG(block_signatures_[block] == sign_block(grid, block),
+                       "a block's samples changed where the grid said they had not");
+#endif
   }
+  signatures_valid_ = true;
   std::fill_n(taken_cells_.begin(), grid.block_count(), std::uint64_t{0});
   current_ ^= 1;
   entry_count_[current_] = 0;

@@ -882,9 +882,14 @@ void VoxelGrid::estimate_shapes(const ShapeOptions& options) noexcept {
     take_coarse_look(options, limits);
   }
   if (keeping_shapes_) {
-    // Changed and stale are done with; placed stays until the index serves a new key.
+    // Changed and stale are done with; placed stays until the index serves a new key, and
+    // what the samples went through is what samples_changed() tells till the next pass.
     for (std::size_t block = 0; block < block_count_; ++block) {
-      block_flags_[block] &= kPlaced;
+      const std::uint8_t flags = block_flags_[block];
+      const bool samples_changed = (flags & (kChanged | kLoaded | kReshaped)) != 0;
+      block_flags_[block] =
+          static_cast<std::uint8_t>((flags & (kPlaced | kCoarseApplied)) |
+                                    (samples_changed ? kSamplesChanged : 0));
       changed_cells_[block] = 0;
     }
   }
@@ -902,10 +907,12 @@ void VoxelGrid::take_coarse_look(const ShapeOptions& options, ShapeLimits limits
     const BlockRange range = block_range(block);
     const std::span<Voxel> samples = voxels_.subspan(range.first, range.count);
     const auto scattered = [](const Voxel& v) { return v.shape == LocalShape::kScattered; };
-    if (std::none_of(samples.begin(), samples.end(), scattered)) {
-      continue;
+    const Eigen::Vector3f normal = std::none_of(samples.begin(), samples.end(), scattered)
+                                       ? Eigen::Vector3f::Zero()
+                                       : coarse_normal(block, limits);
+    if (keeping_shapes_) {
+      note_coarse_look(block, !normal.isZero());
     }
-    const Eigen::Vector3f normal = coarse_normal(block, limits);
     if (normal.isZero()) {
       continue;
     }
@@ -917,6 +924,17 @@ void VoxelGrid::take_coarse_look(const ShapeOptions& options, ShapeLimits limits
       }
     }
   }
+}
+
+void VoxelGrid::note_coarse_look(std::uint32_t block, bool applied) noexcept {
+  // Applied now and not before, or the other way round: the block's scattered samples changed.
+  // (When it was applied both times, a moved normal was noted where it was estimated again.)
+  const bool before = (block_flags_[block] & kCoarseApplied) != 0;
+  if (applied != before) {
+    block_flags_[block] |= kReshaped;
+  }
+  block_flags_[block] = static_cast<std::uint8_t>(
+      applied ? (block_flags_[block] | kCoarseApplied) : (block_flags_[block] & ~kCoarseApplied));
 }
 
 void VoxelGrid::mark_stale_around(CellKey block_key, std::uint8_t flags) noexcept {
@@ -1042,6 +1060,9 @@ void VoxelGrid::estimate_fine_shapes(const ShapeLimits& limits, double& thicknes
     const std::uint64_t stale = stale_in(i);
     // Samples read from the table have lost their shapes; moved ones carry them.
     const bool loaded = keeping_shapes_ && (block_flags_[block] & kLoaded) != 0;
+    if (keeping_shapes_ && (stale & live_masks_[block]) != 0) {
+      block_flags_[block] |= kReshaped;
+    }
     // The block's samples are its live cells in bit order.
     std::uint64_t cells = live_masks_[block];
     float thickness_sum = 0.0f;  // per block in float, over the cloud in double
@@ -1243,8 +1264,13 @@ Eigen::Vector3f VoxelGrid::coarse_normal(std::uint32_t block, const ShapeLimits&
   // the limits follow the cloud's surface noise, so they are applied anew.
   CoarseSpread& kept = kept_coarse_[block];
   if (!kept.known || (block_flags_[block] & kStale) != 0) {
+    const Eigen::Vector3f normal_before = kept.normal;
+    const bool known_before = kept.known;
     kept = coarse_spread(b.x(), b.y(), b.z(), nullptr);
     kept.known = true;
+    if (!known_before || kept.normal != normal_before) {
+      block_flags_[block] |= kReshaped;  // what the coarse look gives may have moved
+    }
   }
   return coarse_normal_of(kept, limits, false) ? kept.normal : Eigen::Vector3f::Zero();
 }

@@ -108,6 +108,9 @@ class SectionCache {
   std::size_t block_count_ = 0;
   std::uint64_t salt_ = 0;
   bool valid_ = false;  // last time's entries hold for this grid
+  // block_signatures_ hold for every block whose samples did not change since (cleared by
+  // invalidate(): block indices may start over).
+  bool signatures_valid_ = false;
   Counters counters_;
 };
 

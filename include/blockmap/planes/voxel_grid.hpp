@@ -252,6 +252,11 @@ class VoxelGrid {
   [[nodiscard]] std::uint64_t live_mask(std::size_t block) const noexcept {
     return live_masks_[block];
   }
+  // Whether what the last estimate_shapes() left in a block's samples (keys, sums, shapes,
+  // axes) may differ from what the one before it left. Without kept shapes, always.
+  [[nodiscard]] bool samples_changed(std::size_t block) const noexcept {
+    return !keeping_shapes_ || (block_flags_[block] & kSamplesChanged) != 0;
+  }
   // The index of the block with `block_key` (block coordinates), or CellIndex::kAbsent.
   [[nodiscard]] std::uint32_t find_block(CellKey block_key) const noexcept {
     return block_index_.find(block_key);
@@ -350,6 +355,8 @@ class VoxelGrid {
   void mark_stale_blocks() noexcept;
   // The block with this key and the 26 around it (those that exist) are stale.
   void mark_stale_around(CellKey block_key, std::uint8_t flags) noexcept;
+  // With kept shapes: the coarse look made the block's scattered samples planar (or not).
+  void note_coarse_look(std::uint32_t block, bool applied) noexcept;
   void mark_changed(CellKey key) noexcept;  // a sample's sums
   // The slot for sums.key, created when new; kAbsent, its points counted as dropped, when
   // the key is out of range or the grid full.
@@ -438,6 +445,13 @@ class VoxelGrid {
   // Its samples were read from the table by this compact() (new, changed or laid out afresh):
   // they carry no shapes, which come from kept_ where they are not estimated again.
   static constexpr std::uint8_t kLoaded = 16;
+  // During a shape pass: a fine shape was estimated again, or the coarse look's normal for
+  // the block's scattered samples came or went or moved.
+  static constexpr std::uint8_t kReshaped = 32;
+  // The last coarse look made the block's scattered samples planar.
+  static constexpr std::uint8_t kCoarseApplied = 64;
+  // After a shape pass: changed, loaded or reshaped in it (samples_changed()).
+  static constexpr std::uint8_t kSamplesChanged = 128;
   bool keeping_shapes_ = false;
   std::span<std::uint32_t> serial_of_slot_;
   std::span<std::uint32_t> free_serials_;  // serials of erased voxels, for new ones
