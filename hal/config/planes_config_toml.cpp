@@ -46,6 +46,7 @@ planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view
   c.noisy_slab_per_noise = t.number_or("noisy_slab_per_noise", c.noisy_slab_per_noise);
   c.walls_from_lines = t.boolean_or("walls_from_lines", c.walls_from_lines);
   c.barren_section_growth = t.number_or("barren_section_growth", c.barren_section_growth);
+  c.settled_section_growth = t.number_or("settled_section_growth", c.settled_section_growth);
   c.min_votes = t.number_or("min_votes", c.min_votes);
   c.max_planes_per_section = t.capacity_or("max_planes_per_section", c.max_planes_per_section);
   c.inlier_distance_m = t.number_or("inlier_distance_m", c.inlier_distance_m);

@@ -496,6 +496,7 @@ void Mapper::extract(TimestampNs stamp_ns) noexcept {
   counters_.sections_searched += detector_.stats().sections_searched;
   counters_.sections_replayed += detector_.stats().sections_replayed;
   counters_.sections_still_barren += detector_.stats().sections_still_barren;
+  counters_.sections_settled += detector_.stats().sections_settled;
   registry_.update(planes, detector_.plane_moments());
   update_stamp_ns_ = stamp_ns;
   refit_buildings();

@@ -23,6 +23,7 @@ ShapeOptions shape_options(const PlanesConfig& config) noexcept {
   options.max_noisy_slab_ratio = config.max_noisy_slab_ratio;
   options.noisy_slab_per_noise = config.noisy_slab_per_noise;
   options.level_slices = config.walls_from_lines;
+  options.every_sample_votes = config.voting_mode == VotingMode::kEveryOrientation;
   return options;
 }
 
@@ -55,9 +56,6 @@ MeasuredGrid measured_orientation_grid(const PlanesConfig& config) {
 }
 
 constexpr double kDegToRad = std::numbers::pi / 180.0;
-// A sample's orientation cell before a section it votes in looks it up (most samples lie in
-// sections that are replayed, and never vote).
-constexpr std::uint32_t kAxisCellUnknown = std::numeric_limits<std::uint32_t>::max();
 // The inlier band: this many times the fit's RMS distance, grown in at most this many extra
 // refinement steps.
 constexpr double kBandPerRmse = 3.0;
@@ -159,18 +157,15 @@ std::span<const msg::PlanePatch> PlaneDetector::detect() noexcept {
                           counters.points_dropped_nonfinite;
   voxels_.compact();
   sections_.build(voxels_);
-  voxels_.estimate_shapes(shape_options(config_));
+  // The shape pass also clears what the last detection left in the samples (owners, and
+  // orientation cells, looked up again by the first section a sample votes in), and sums
+  // each block's voting points: at first, all of them are free.
+  voxels_.estimate_shapes(shape_options(config_), block_free_points_);
   stats_.surface_noise_m = voxels_.surface_noise_m();
   stats_.shapes_reused = voxels_.shapes_reused();
-  std::fill_n(block_free_points_.begin(), voxels_.block_count(), 0U);
-  for (Voxel& voxel : voxels_.voxels()) {
-    voxel.owner = -1;
-    block_free_points_[voxel.block] += votes(voxel) ? voxel.point_count : 0;
-    voxel.axis_cell = kAxisCellUnknown;  // looked up by the first section it votes in
-    stats_.planar_samples += voxel.shape == LocalShape::kPlanar ? 1 : 0;
-    stats_.linear_samples += voxel.shape == LocalShape::kLinear ? 1 : 0;
-    stats_.scattered_samples += voxel.shape == LocalShape::kScattered ? 1 : 0;
-  }
+  stats_.planar_samples = voxels_.shape_tally().planar;
+  stats_.linear_samples = voxels_.shape_tally().linear;
+  stats_.scattered_samples = voxels_.shape_tally().scattered;
   stats_.samples = voxels_.size();
   merger_.clear();
   if (caching_) {
@@ -285,6 +280,11 @@ void PlaneDetector::detect_in_section(std::size_t index) noexcept {
     entry.searched_points = before->searched_points;
     ++stats_.sections_replayed;
     ++stats_.sections_still_barren;
+  } else if (before != nullptr && settled(*before, free_points)) {
+    entry.took_samples = replay_settled_section(*before, section, blocks) ? 1 : 0;
+    entry.searched_points = before->searched_points;
+    ++stats_.sections_replayed;
+    ++stats_.sections_settled;
   } else {
     entry.searched_points = static_cast<std::uint16_t>(
         std::min<std::uint64_t>(free_points, SectionCache::kMaxSearchedPoints));
@@ -305,6 +305,55 @@ bool PlaneDetector::still_barren(const SectionCache::Entry& before,
          before.took_samples == 0 && before.searched_points < SectionCache::kMaxSearchedPoints &&
          static_cast<double>(free_points) <
              static_cast<double>(before.searched_points) * (1.0 + config_.barren_section_growth);
+}
+
+bool PlaneDetector::settled(const SectionCache::Entry& before,
+                             std::uint64_t free_points) const noexcept {
+  // Shrunk: samples it took may have left the window, or an earlier section took them; its
+  // planes may not hold any more.
+  return config_.settled_section_growth > 0.0 && before.plane_count > 0 &&
+         before.searched_points < SectionCache::kMaxSearchedPoints &&
+         free_points >= before.searched_points &&
+         static_cast<double>(free_points) <
+             static_cast<double>(before.searched_points) * (1.0 + config_.settled_section_growth);
+}
+
+bool PlaneDetector::replay_settled_section(const SectionCache::Entry& before, CellKey section,
+                                           std::span<const std::uint32_t> blocks) noexcept {
+  for (const SectionPlane& plane : cache_.planes_of(before)) {
+    merger_.add(plane);
+  }
+  if (before.took_samples == 0) {
+    return false;
+  }
+  // What it took last time, per block, before its claims are forgotten (cells that left the
+  // window among them) and made again for the samples that are there and free.
+  std::array<std::uint64_t, SectionCache::kMaxBlocksPerSection * SectionCache::kMaxBlocksPerSection *
+                                SectionCache::kMaxBlocksPerSection>
+      taken{};
+  BLOCKMAP_CHECK_MSG(blocks.size() <= taken.size(), "a kept section of more than 2 x 2 x 2 blocks");
+  for (std::size_t k = 0; k < blocks.size(); ++k) {
+    taken[k] = cache_.taken_by(section, blocks[k], voxels_.block_key(blocks[k])) &
+               voxels_.live_mask(blocks[k]);
+  }
+  cache_.forget_taken(section, blocks, voxels_);
+  const auto owner = static_cast<std::int32_t>(merger_.section_plane_count());
+  const std::span<Voxel> voxels = voxels_.voxels();
+  bool took = false;
+  for (std::size_t k = 0; k < blocks.size(); ++k) {
+    const std::uint64_t live = voxels_.live_mask(blocks[k]);
+    const std::uint32_t first = voxels_.block_range(blocks[k]).first;
+    for (std::uint64_t cells = taken[k]; cells != 0; cells &= cells - 1) {
+      const auto bit = static_cast<std::uint32_t>(std::countr_zero(cells));
+      const std::uint64_t below = live & ((std::uint64_t{1} << bit) - 1);
+      Voxel& voxel = voxels[first + static_cast<std::uint32_t>(std::popcount(below))];
+      if (voxel.owner < 0) {
+        take_sample(voxel, owner, section);
+        took = true;
+      }
+    }
+  }
+  return took;
 }
 
 void PlaneDetector::search_section(CellKey section,

@@ -72,6 +72,9 @@ std::string validate(const PlanesConfig& c) {
   if (!(c.barren_section_growth >= 0.0 && c.barren_section_growth <= 100.0)) {
     return "barren_section_growth must be in [0, 100]";
   }
+  if (!(c.settled_section_growth >= 0.0 && c.settled_section_growth <= 100.0)) {
+    return "settled_section_growth must be in [0, 100]";
+  }
   if (!(c.label_tolerance_deg > 0.0 && c.label_tolerance_deg < 45.0)) {
     return "label_tolerance_deg must be in (0, 45)";
   }

@@ -866,7 +866,10 @@ void VoxelGrid::load_neighbourhood(std::int64_t bx, std::int64_t by, std::int64_
   }
 }
 
-void VoxelGrid::estimate_shapes(const ShapeOptions& options) noexcept {
+void VoxelGrid::estimate_shapes(const ShapeOptions& options,
+                                std::span<std::uint32_t> voting_points) noexcept {
+  BLOCKMAP_CHECK_MSG(voting_points.empty() || voting_points.size() >= block_count_,
+                     "voting points need an entry per block");
   const auto squared = [](double ratio) { return static_cast<float>(ratio * ratio); };
   ShapeLimits limits;
   limits.planar_ratio_sq = squared(options.max_planarity_ratio);
@@ -875,11 +878,16 @@ void VoxelGrid::estimate_shapes(const ShapeOptions& options) noexcept {
   limits.level_slices = options.level_slices;
   double thickness_sum_m = 0.0;
   std::uint64_t planar_count = 0;
-  estimate_fine_shapes(limits, thickness_sum_m, planar_count);
+  shape_tally_ = ShapeTally{};
+  // Erased blocks keep their index and hold no samples: no points.
+  std::fill_n(voting_points.begin(), voting_points.empty() ? 0 : block_count_, 0U);
+  estimate_fine_shapes(limits, options.every_sample_votes, voting_points, thickness_sum_m,
+                       planar_count);
   surface_noise_m_ = planar_count > 0 ? thickness_sum_m / static_cast<double>(planar_count) : 0.0;
+  shape_tally_.planar = planar_count;
   // Level slices have no second look: at 2.4 m they are flat too, and only the slice.
   if (options.coarse_second_look && !options.level_slices) {
-    take_coarse_look(options, limits);
+    take_coarse_look(options, limits, voting_points);
   }
   if (keeping_shapes_) {
     // Changed and stale are done with; placed stays until the index serves a new key, and
@@ -895,7 +903,8 @@ void VoxelGrid::estimate_shapes(const ShapeOptions& options) noexcept {
   }
 }
 
-void VoxelGrid::take_coarse_look(const ShapeOptions& options, ShapeLimits limits) noexcept {
+void VoxelGrid::take_coarse_look(const ShapeOptions& options, ShapeLimits limits,
+                                 std::span<std::uint32_t> voting_points) noexcept {
   const auto squared = [](double ratio) { return static_cast<float>(ratio * ratio); };
   // The second look knows how thick this cloud's surfaces are: a slab a few surface-noise
   // thicknesses thick is a blurred wall (pose errors blur every surface alike), where a crisp
@@ -907,7 +916,7 @@ void VoxelGrid::take_coarse_look(const ShapeOptions& options, ShapeLimits limits
     const BlockRange range = block_range(block);
     const std::span<Voxel> samples = voxels_.subspan(range.first, range.count);
     const auto scattered = [](const Voxel& v) { return v.shape == LocalShape::kScattered; };
-    const Eigen::Vector3f normal = std::none_of(samples.begin(), samples.end(), scattered)
+    const Eigen::Vector3f normal = (block_summed_[block] & kHoldsScattered) == 0
                                        ? Eigen::Vector3f::Zero()
                                        : coarse_normal(block, limits);
     if (keeping_shapes_) {
@@ -921,6 +930,11 @@ void VoxelGrid::take_coarse_look(const ShapeOptions& options, ShapeLimits limits
         voxel.shape = LocalShape::kPlanar;
         voxel.axis = normal;
         voxel.coarse_look = true;
+        --shape_tally_.scattered;
+        ++shape_tally_.planar;
+        if (!voting_points.empty() && !options.every_sample_votes) {
+          voting_points[block] += voxel.point_count;  // planar now: it votes
+        }
       }
     }
   }
@@ -1013,8 +1027,9 @@ void VoxelGrid::mark_stale_blocks() noexcept {
   }
 }
 
-void VoxelGrid::estimate_fine_shapes(const ShapeLimits& limits, double& thickness_sum_m,
-                                     std::uint64_t& planar_count) noexcept {
+void VoxelGrid::estimate_fine_shapes(const ShapeLimits& limits, bool every_sample_votes,
+                                     std::span<std::uint32_t> voting_points,
+                                     double& thickness_sum_m, std::uint64_t& planar_count) noexcept {
   shapes_reused_ = 0;
   if (keeping_shapes_) {
     mark_stale_blocks();
@@ -1066,6 +1081,8 @@ void VoxelGrid::estimate_fine_shapes(const ShapeLimits& limits, double& thicknes
     // The block's samples are its live cells in bit order.
     std::uint64_t cells = live_masks_[block];
     float thickness_sum = 0.0f;  // per block in float, over the cloud in double
+    std::uint32_t block_voting_points = 0;
+    std::uint32_t block_scattered = 0;
     for (std::uint32_t id = range.first; id < range.first + range.count; ++id, cells &= cells - 1) {
       Voxel& voxel = voxels_[id];
       if ((stale & cells & (~cells + 1)) != 0) {
@@ -1090,13 +1107,28 @@ void VoxelGrid::estimate_fine_shapes(const ShapeLimits& limits, double& thicknes
         }
       }
       voxel.coarse_look = false;
+      // What the last detection left in the sample.
+      voxel.owner = -1;
+      voxel.axis_cell = kAxisCellUnknown;
       const float thickness_m = voxel.fine_thickness_m;
-      if (voxel.shape == LocalShape::kPlanar) {
+      const bool planar = voxel.shape == LocalShape::kPlanar;
+      const bool linear = voxel.shape == LocalShape::kLinear;
+      if (planar) {
         thickness_sum += thickness_m;
         ++planar_count;
       }
+      block_scattered += voxel.shape == LocalShape::kScattered ? 1 : 0;
+      shape_tally_.linear += linear ? 1 : 0;
+      block_voting_points += every_sample_votes || planar || linear ? voxel.point_count : 0;
     }
     thickness_sum_m += static_cast<double>(thickness_sum);
+    shape_tally_.scattered += block_scattered;
+    if (block_scattered > 0) {
+      block_summed_[block] |= kHoldsScattered;
+    }
+    if (!voting_points.empty()) {
+      voting_points[block] = block_voting_points;
+    }
   }
 }
 
@@ -1210,9 +1242,9 @@ VoxelGrid::CoarseSpread VoxelGrid::coarse_spread(std::int64_t bx, std::int64_t b
         if (block == CellIndex::kAbsent) {
           continue;
         }
-        if (block_summed_[block] == 0) {
+        if ((block_summed_[block] & kSummed) == 0) {
           block_sums_[block] = sum_block(block);
-          block_summed_[block] = 1;
+          block_summed_[block] |= kSummed;
         }
         around.add(block_sums_[block].moved_by({static_cast<float>(dx) * block_m,
                                                 static_cast<float>(dy) * block_m,

@@ -60,8 +60,7 @@ struct MapperRun {
 
 MapperRun map_world(const std::string& world, PoseSource poses, double duration_s = kDurationS,
                     bool incremental_extraction = true, double pose_lag_s = 0.0,
-                    double barren_section_growth = planes::PlanesConfig{}.barren_section_growth,
-                    std::uint64_t seed = 3) {
+                    bool sections_wait = true, std::uint64_t seed = 3) {
   const hal::sim::RobotSpec robot = hal::sim::load_robot("paper_rmp");
   hal::sim::SimOptions options;
   options.seed = seed;
@@ -73,7 +72,11 @@ MapperRun map_world(const std::string& world, PoseSource poses, double duration_
   config.pose_source = poses;
   config.incremental_extraction = incremental_extraction;
   config.localizer.map_pose_lag_s = pose_lag_s;
-  config.planes.barren_section_growth = barren_section_growth;
+  if (!sections_wait) {
+    // Every section searched again whenever anything in it changed.
+    config.planes.barren_section_growth = 0.0;
+    config.planes.settled_section_growth = 0.0;
+  }
   Arena arena(Mapper::arena_bytes(config));
   auto mapper = std::make_unique<Mapper>();
   mapper->init(arena, config);
@@ -212,8 +215,8 @@ TEST(MapperSim, UscBlockWithTruePosesFindsTheFaces) {
 // The same run twice gives the same bytes. And the detector keeps the window's samples, their
 // shapes and its sections' results: it takes only the samples that gained points, lets go of
 // those whose tile left, and replays every section whose inputs are as they were. What it
-// keeps is what it would find again, so with barren sections searched again at every change
-// (barren_section_growth 0) the stream is also the same, byte for byte, as with every window
+// keeps is what it would find again, so with sections searched again at every change
+// (barren_section_growth and settled_section_growth 0) the stream is also the same, byte for byte, as with every window
 // detected afresh (incremental_extraction off).
 TEST(MapperSim, TheSameRunGivesTheSameStreamWithOrWithoutKeptShapes) {
   const MapperRun a = map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS);
@@ -222,9 +225,10 @@ TEST(MapperSim, TheSameRunGivesTheSameStreamWithOrWithoutKeptShapes) {
   EXPECT_GT(a.stream.size(), 0u);
   EXPECT_TRUE(a.stream == b.stream) << "the plane stream's bytes differ";
   EXPECT_GT(a.counters.sections_still_barren, 0u) << "the default lets barren sections wait";
+  EXPECT_GT(a.counters.sections_settled, 0u) << "... and sections that gave planes";
 
   const MapperRun exact =
-      map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS, true, 0.0, 0.0);
+      map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS, true, 0.0, false);
   const MapperRun afresh =
       map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS, false);
   EXPECT_EQ(exact.counters.incremental_extractions, exact.counters.extractions - 1)
@@ -232,6 +236,7 @@ TEST(MapperSim, TheSameRunGivesTheSameStreamWithOrWithoutKeptShapes) {
   EXPECT_GT(exact.tiles_evicted, 0u);
   EXPECT_GT(exact.counters.sections_replayed, exact.counters.sections_searched / 2);
   EXPECT_EQ(exact.counters.sections_still_barren, 0u);
+  EXPECT_EQ(exact.counters.sections_settled, 0u);
   EXPECT_EQ(afresh.counters.incremental_extractions, 0u);
   EXPECT_EQ(afresh.counters.sections_replayed, 0u);
   ASSERT_EQ(exact.stream.size(), afresh.stream.size());
@@ -447,8 +452,8 @@ TEST(MapperSim, DISABLED_TheTableOfBenningBuildingsOverSeeds) {
   std::size_t shapes_right = 0;
   std::size_t buildings_scored = 0;
   for (std::uint64_t seed = 1; seed <= 10; ++seed) {
-    const MapperRun run = map_world("benning", PoseSource::kLocalizer, kDurationS, true, 30.0,
-                                    planes::PlanesConfig{}.barren_section_growth, seed);
+    const MapperRun run =
+        map_world("benning", PoseSource::kLocalizer, kDurationS, true, 30.0, true, seed);
     const testing::MapAlignment alignment =
         testing::align_planes_to_faces(run.faces, run.final_planes);
     std::printf("seed %llu: the map laid onto the truth by %.2f deg and (%.2f %.2f) m, %zu pairs\n",

@@ -865,6 +865,7 @@ TEST(PlaneDetector, KeptSectionsGiveThePlanesOfADetectionAfresh) {
   PlanesConfig kept_config = config;
   kept_config.keep_shapes = true;
   kept_config.barren_section_growth = 0.0;  // every changed section searched again
+  kept_config.settled_section_growth = 0.0;
   DetectorFixture kept(kept_config);
   for (const VoxelSums& sample : before) {
     kept.detector.add_sample(sample);
@@ -973,6 +974,76 @@ TEST(PlaneDetector, ABarrenSectionIsSearchedAgainOnceItHasGrownByTheFraction) {
   }
 }
 
+// Kept sections that gave planes (settled_section_growth): a room seen again with a tenth more
+// returns everywhere gives its planes of last time (their support too) and takes the samples
+// it took; with 0, or once the returns have grown by a third, it is searched again and gives
+// the planes of a detection afresh. A section that lost free points is searched again at once.
+TEST(PlaneDetector, ASettledSectionGivesItsPlanesTillItHasGrownByTheFraction) {
+  const std::vector<Eigen::Vector3f> room = room_cloud(4, false);
+  const auto room_seen = [&](std::size_t times) {
+    std::vector<Eigen::Vector3f> points;
+    for (std::size_t i = 0; i < times; ++i) {
+      points.insert(points.end(), room.begin(), room.end());
+    }
+    return samples_of(points);
+  };
+  const auto planes_of = [](std::span<const msg::PlanePatch> planes) {
+    return std::vector<msg::PlanePatch>(planes.begin(), planes.end());
+  };
+  PlanesConfig config;
+  config.max_samples = 1 << 17;
+  const auto afresh = [&](std::size_t times) {
+    DetectorFixture fresh(config);
+    for (const VoxelSums& sample : room_seen(times)) {
+      fresh.detector.add_sample(sample);
+    }
+    return planes_of(fresh.detector.detect());
+  };
+  for (const double growth : {0.25, 0.0}) {
+    PlanesConfig kept_config = config;
+    kept_config.keep_shapes = true;
+    kept_config.settled_section_growth = growth;
+    DetectorFixture kept(kept_config);
+    for (const VoxelSums& sample : room_seen(10)) {
+      kept.detector.add_sample(sample);
+    }
+    const std::vector<msg::PlanePatch> first = planes_of(kept.detector.detect());
+    ASSERT_GE(first.size(), 5u) << "the room's floor, ceiling and walls";
+    const std::uint64_t taken = kept.detector.stats().samples_taken;
+
+    for (const VoxelSums& sample : room_seen(11)) {  // 10 % more
+      kept.detector.set_sample(sample);
+    }
+    const std::vector<msg::PlanePatch> a_tenth = planes_of(kept.detector.detect());
+    const DetectionStats stats = kept.detector.stats();
+    if (growth > 0.0) {
+      EXPECT_GT(stats.sections_settled, 0u);
+      EXPECT_EQ(stats.sections_replayed, stats.sections_searched) << "every section waits";
+      EXPECT_EQ(stats.samples_taken, taken) << "what it took, taken again";
+      expect_same_planes(a_tenth, first);
+    } else {
+      EXPECT_EQ(stats.sections_settled, 0u);
+      EXPECT_EQ(stats.sections_replayed, stats.sections_still_barren)
+          << "every section that gave planes searched again";
+      expect_same_planes(a_tenth, afresh(11));
+    }
+
+    // A third more than when they were last searched: searched again, whatever the fraction.
+    for (const VoxelSums& sample : room_seen(14)) {
+      kept.detector.set_sample(sample);
+    }
+    expect_same_planes(kept.detector.detect(), afresh(14));
+    EXPECT_EQ(kept.detector.stats().sections_settled, 0u);
+
+    // Fewer returns (the sums set back to ten looks): every section lost free points.
+    for (const VoxelSums& sample : room_seen(10)) {
+      kept.detector.set_sample(sample);
+    }
+    expect_same_planes(kept.detector.detect(), first);
+    EXPECT_EQ(kept.detector.stats().sections_settled, 0u);
+  }
+}
+
 TEST(VoxelGrid, CountingVoxelsBeforeInitGivesTheGridsOwnCount) {
   // Points on cell borders, far away, and not finite: the count must be the grid's, so that a
   // grid sized by it never drops a point.
@@ -1070,6 +1141,9 @@ TEST(PlanesConfig, ValidateNamesWhatIsWrong) {
   c = PlanesConfig{};
   c.barren_section_growth = -0.1;
   EXPECT_NE(validate(c).find("barren_section_growth"), std::string::npos);
+  c = PlanesConfig{};
+  c.settled_section_growth = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_NE(validate(c).find("settled_section_growth"), std::string::npos);
 }
 
 TEST(Polygon, HullGapAndSimplification) {

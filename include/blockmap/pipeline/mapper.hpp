@@ -153,6 +153,7 @@ struct MapperCounters {
   std::uint64_t sections_searched = 0;        // over all extractions
   std::uint64_t sections_replayed = 0;        // of those, as the extraction before found them
   std::uint64_t sections_still_barren = 0;    // of those, planeless and grown too little
+  std::uint64_t sections_settled = 0;         // of those, with planes and grown too little
   std::size_t peak_blocks = 0;  // the detector's occupied blocks, for sizing max_blocks
   // The most window samples the detector had no room for at one extraction (its blocks full:
   // [planes] max_blocks). Their points are in the window, not in the planes.

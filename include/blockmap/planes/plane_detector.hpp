@@ -38,6 +38,8 @@ struct DetectionStats {
   std::uint64_t sections_replayed = 0;  // of those, as they were last time (SectionCache)
   // of those, barren last time and grown too little since (barren_section_growth)
   std::uint64_t sections_still_barren = 0;
+  // of those, gave planes last time and grown too little since (settled_section_growth)
+  std::uint64_t sections_settled = 0;
   std::uint64_t votes = 0;
   std::uint64_t peaks = 0;
   std::uint64_t section_planes = 0;
@@ -92,6 +94,14 @@ class PlaneDetector {
   // barren_section_growth since it was searched: not searched again yet.
   [[nodiscard]] bool still_barren(const SectionCache::Entry& before,
                                   std::uint64_t free_points) const noexcept;
+  // A section that gave planes last time, whose free points have not shrunk and have grown
+  // by less than settled_section_growth since it was searched.
+  [[nodiscard]] bool settled(const SectionCache::Entry& before,
+                             std::uint64_t free_points) const noexcept;
+  // Gives a settled section's last planes again and takes again the samples it took that
+  // are still there and free; returns whether it took any.
+  bool replay_settled_section(const SectionCache::Entry& before, CellKey section,
+                              std::span<const std::uint32_t> blocks) noexcept;
   // The section's Hough transform: votes, peaks, and each peak refined into a plane.
   void search_section(CellKey section, std::span<const std::uint32_t> blocks) noexcept;
   // A section whose inputs are last time's (SectionCache): its planes and samples again.

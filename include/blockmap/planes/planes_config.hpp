@@ -73,6 +73,12 @@ struct PlanesConfig {
   // 0: searched again whenever anything in it changed, and the planes are those of a
   // detection afresh.
   double barren_section_growth = 0.25;
+  // The same for a section that gave planes: while its free points lie between what they
+  // were at its last search and that times (1 + settled_section_growth), it gives its last
+  // planes again and takes again what it took that no earlier section took (new samples in
+  // it stay free till it is searched again). 0: searched again whenever anything in it
+  // changed.
+  double settled_section_growth = 0.25;
 
   // A cell of the accumulator is a plane when its votes (points, summed over the cell and its
   // two neighbours in d) reach this threshold and no neighbouring cell has more.

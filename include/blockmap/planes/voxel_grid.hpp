@@ -12,6 +12,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <span>
 
 #include <Eigen/Core>
@@ -173,6 +174,20 @@ struct ShapeOptions {
   double max_noisy_slab_ratio = 0.5;
   double noisy_slab_per_noise = 4.0;
   bool level_slices = false;  // every point from a level 2D laser (walls_from_lines)
+  // Which samples vote in the detection that follows (estimate_shapes' voting points):
+  // planar and linear ones, or every sample that holds points.
+  bool every_sample_votes = false;
+};
+
+// A sample's orientation cell before a section it votes in looks it up (most samples lie in
+// sections that are replayed, and never vote). The shape pass sets it.
+inline constexpr std::uint32_t kAxisCellUnknown = std::numeric_limits<std::uint32_t>::max();
+
+// How many samples the last shape pass left of each shape.
+struct ShapeTally {
+  std::uint64_t planar = 0;
+  std::uint64_t linear = 0;
+  std::uint64_t scattered = 0;
 };
 
 class VoxelGrid {
@@ -234,7 +249,13 @@ class VoxelGrid {
   // blocks around their block when that is planar. With level_slices (all points from level
   // 2D lasers, walls_from_lines), a neighbourhood flat because it lies in a horizontal slice
   // is classified by its shape within the slice: thin across, a line (a wall's trace).
-  void estimate_shapes(const ShapeOptions& options) noexcept;
+  // The same pass starts the detection that reads the shapes, so that it need not go over
+  // every sample again: each sample's owner and orientation cell are cleared, and, when
+  // `voting_points` is given (block_count() entries), each block's entry is set to the points
+  // of its samples that vote (ShapeOptions::every_sample_votes).
+  void estimate_shapes(const ShapeOptions& options,
+                       std::span<std::uint32_t> voting_points = {}) noexcept;
+  [[nodiscard]] const ShapeTally& shape_tally() const noexcept { return shape_tally_; }
   // The cloud's surface noise: the mean RMS thickness of the neighbourhoods that the last
   // estimate_shapes() found planar at the fine scale (0 when none were). Sensor noise alone
   // gives millimetres; pose errors between scans give centimetres.
@@ -364,7 +385,10 @@ class VoxelGrid {
   // With kept shapes: the block of this cell changed.
   void sums_changed(CellKey key) noexcept;
   // The fine shape of every sample; adds up the planar samples' thicknesses and count.
-  void estimate_fine_shapes(const ShapeLimits& limits, double& thickness_sum_m,
+  // Also counts the shapes and the voting points, and marks the blocks holding scattered
+  // samples (kHoldsScattered), for the coarse look.
+  void estimate_fine_shapes(const ShapeLimits& limits, bool every_sample_votes,
+                            std::span<std::uint32_t> voting_points, double& thickness_sum_m,
                             std::uint64_t& planar_count) noexcept;
   // Sets the sample's shape; returns its neighbourhood's RMS thickness when planar, else 0.
   float estimate_shape(Voxel& voxel, const BlockNeighbourhood& around,
@@ -375,7 +399,8 @@ class VoxelGrid {
   [[nodiscard]] Eigen::Vector3f coarse_normal(std::uint32_t block,
                                               const ShapeLimits& limits) noexcept;
   // The second look over the blocks that hold scattered samples.
-  void take_coarse_look(const ShapeOptions& options, ShapeLimits limits) noexcept;
+  void take_coarse_look(const ShapeOptions& options, ShapeLimits limits,
+                        std::span<std::uint32_t> voting_points) noexcept;
   // The spread of the 3 x 3 x 3 blocks around one block: its two smallest eigenvalues, and
   // the normal when `limits` may take it (always without limits: the spread is kept).
   struct CoarseSpread {
@@ -419,7 +444,12 @@ class VoxelGrid {
   std::size_t ordered_blocks_ = 0;        // entries of block_order_ (block_count_ then)
   std::span<CentredSums> centred_sums_;   // per sample, about its block's centre (compact())
   std::span<CentredSums> block_sums_;     // per block, when a coarse look needs it
-  std::span<std::uint8_t> block_summed_;  // 1: block_sums_ holds the block's sums
+  // Per block: kSummed, block_sums_ holds its sums; kHoldsScattered, the fine pass left
+  // scattered samples in it. Both cleared by compact().
+  std::span<std::uint8_t> block_summed_;
+  static constexpr std::uint8_t kSummed = 1;
+  static constexpr std::uint8_t kHoldsScattered = 2;
+  ShapeTally shape_tally_;
   // Indices of erased blocks, for new ones (an erased block stays in the index range with no
   // cells until then).
   std::span<std::uint32_t> free_blocks_;
