@@ -121,7 +121,8 @@ void MappingSession::report(std::ostream& err, double data_s) const {
       text, sizeof text,
       "mapped %.1f s of data in %.2f s (%.0fx real time): %llu scans projected, %llu points "
       "(%llu outside the window, %llu with no room); %llu extractions (%llu on kept samples; "
-      "%llu of %llu sections as before, %llu of them barren still, %llu settled); planes: %llu added, %llu "
+      "%llu of %llu sections as before, %llu of them barren still, %llu settled); planes: %llu "
+      "added, %llu "
       "changes, %llu final; window peak %zu samples of %zu; %llu updates, %llu bytes of binary "
       "stream -> %s\n",
       data_s, wall_s, wall_s > 0.0 ? data_s / wall_s : 0.0,
@@ -133,8 +134,8 @@ void MappingSession::report(std::ostream& err, double data_s) const {
       static_cast<unsigned long long>(c.sections_replayed),
       static_cast<unsigned long long>(c.sections_searched),
       static_cast<unsigned long long>(c.sections_still_barren),
-      static_cast<unsigned long long>(c.sections_settled),
-      static_cast<unsigned long long>(r.added), static_cast<unsigned long long>(r.changed),
+      static_cast<unsigned long long>(c.sections_settled), static_cast<unsigned long long>(r.added),
+      static_cast<unsigned long long>(r.changed),
       static_cast<unsigned long long>(mapper_.final_planes().size()), w.peak_samples,
       mapper_.window().capacity(), static_cast<unsigned long long>(outputs_.updates()),
       static_cast<unsigned long long>(outputs_.binary_bytes()), outputs_.dir().c_str());

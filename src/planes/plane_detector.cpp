@@ -308,7 +308,7 @@ bool PlaneDetector::still_barren(const SectionCache::Entry& before,
 }
 
 bool PlaneDetector::settled(const SectionCache::Entry& before,
-                             std::uint64_t free_points) const noexcept {
+                            std::uint64_t free_points) const noexcept {
   // Shrunk: samples it took may have left the window, or an earlier section took them; its
   // planes may not hold any more.
   return config_.settled_section_growth > 0.0 && before.plane_count > 0 &&
@@ -328,7 +328,8 @@ bool PlaneDetector::replay_settled_section(const SectionCache::Entry& before, Ce
   }
   // What it took last time, per block, before its claims are forgotten (cells that left the
   // window among them) and made again for the samples that are there and free.
-  std::array<std::uint64_t, SectionCache::kMaxBlocksPerSection * SectionCache::kMaxBlocksPerSection *
+  std::array<std::uint64_t, SectionCache::kMaxBlocksPerSection *
+                                SectionCache::kMaxBlocksPerSection *
                                 SectionCache::kMaxBlocksPerSection>
       taken{};
   BLOCKMAP_CHECK_MSG(blocks.size() <= taken.size(), "a kept section of more than 2 x 2 x 2 blocks");

@@ -337,11 +337,26 @@ void VoxelGrid::compact() noexcept {
   } else {
     lay_out_all_blocks();
   }
-  std::fill_n(block_summed_.begin(), block_count_, std::uint8_t{0});  // summed when needed
+  forget_block_sums();
   ordered_blocks_ = block_count_;
   for (std::size_t i = 0; keeping_shapes_ && i < block_count_; ++i) {
     block_order_[i].first = block_first_[block_order_[i].block];
     block_flags_[block_order_[i].block] |= kPlaced;
+  }
+}
+
+void VoxelGrid::forget_block_sums() noexcept {
+  if (!keeping_shapes_) {
+    std::fill_n(block_summed_.begin(), block_count_, std::uint8_t{0});  // summed when needed
+    return;
+  }
+  // A block's sums are its samples' centred sums added in bit order: the same until one of
+  // them changes (a block read from the table again holds the same sums, summed alike, but it
+  // is summed again all the same). A new block, or an index that serves a new key, changed.
+  for (std::size_t block = 0; block < block_count_; ++block) {
+    if ((block_flags_[block] & (kChanged | kLoaded)) != 0) {
+      block_summed_[block] = 0;
+    }
   }
 }
 
@@ -895,9 +910,8 @@ void VoxelGrid::estimate_shapes(const ShapeOptions& options,
     for (std::size_t block = 0; block < block_count_; ++block) {
       const std::uint8_t flags = block_flags_[block];
       const bool samples_changed = (flags & (kChanged | kLoaded | kReshaped)) != 0;
-      block_flags_[block] =
-          static_cast<std::uint8_t>((flags & (kPlaced | kCoarseApplied)) |
-                                    (samples_changed ? kSamplesChanged : 0));
+      block_flags_[block] = static_cast<std::uint8_t>((flags & (kPlaced | kCoarseApplied)) |
+                                                      (samples_changed ? kSamplesChanged : 0));
       changed_cells_[block] = 0;
     }
   }
@@ -1029,7 +1043,8 @@ void VoxelGrid::mark_stale_blocks() noexcept {
 
 void VoxelGrid::estimate_fine_shapes(const ShapeLimits& limits, bool every_sample_votes,
                                      std::span<std::uint32_t> voting_points,
-                                     double& thickness_sum_m, std::uint64_t& planar_count) noexcept {
+                                     double& thickness_sum_m,
+                                     std::uint64_t& planar_count) noexcept {
   shapes_reused_ = 0;
   if (keeping_shapes_) {
     mark_stale_blocks();
@@ -1123,9 +1138,8 @@ void VoxelGrid::estimate_fine_shapes(const ShapeLimits& limits, bool every_sampl
     }
     thickness_sum_m += static_cast<double>(thickness_sum);
     shape_tally_.scattered += block_scattered;
-    if (block_scattered > 0) {
-      block_summed_[block] |= kHoldsScattered;
-    }
+    block_summed_[block] = static_cast<std::uint8_t>((block_summed_[block] & ~kHoldsScattered) |
+                                                     (block_scattered > 0 ? kHoldsScattered : 0));
     if (!voting_points.empty()) {
       voting_points[block] = block_voting_points;
     }

@@ -216,8 +216,8 @@ TEST(MapperSim, UscBlockWithTruePosesFindsTheFaces) {
 // shapes and its sections' results: it takes only the samples that gained points, lets go of
 // those whose tile left, and replays every section whose inputs are as they were. What it
 // keeps is what it would find again, so with sections searched again at every change
-// (barren_section_growth and settled_section_growth 0) the stream is also the same, byte for byte, as with every window
-// detected afresh (incremental_extraction off).
+// (barren_section_growth and settled_section_growth 0) the stream is also the same, byte for byte,
+// as with every window detected afresh (incremental_extraction off).
 TEST(MapperSim, TheSameRunGivesTheSameStreamWithOrWithoutKeptShapes) {
   const MapperRun a = map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS);
   const MapperRun b = map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS);

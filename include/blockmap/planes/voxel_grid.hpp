@@ -399,6 +399,8 @@ class VoxelGrid {
   [[nodiscard]] Eigen::Vector3f coarse_normal(std::uint32_t block,
                                               const ShapeLimits& limits) noexcept;
   // The second look over the blocks that hold scattered samples.
+  // compact(): the block sums that no longer hold are summed again when a coarse look needs them.
+  void forget_block_sums() noexcept;
   void take_coarse_look(const ShapeOptions& options, ShapeLimits limits,
                         std::span<std::uint32_t> voting_points) noexcept;
   // The spread of the 3 x 3 x 3 blocks around one block: its two smallest eigenvalues, and
@@ -440,12 +442,13 @@ class VoxelGrid {
     std::uint32_t first = 0;  // its first sample in the layout of the compact() that placed it
   };
   static constexpr std::uint32_t kNotLaidOut = 0xFFFFFFFFu;
-  std::span<BlockOrder> block_order_;     // blocks as compact() laid them out
-  std::size_t ordered_blocks_ = 0;        // entries of block_order_ (block_count_ then)
-  std::span<CentredSums> centred_sums_;   // per sample, about its block's centre (compact())
-  std::span<CentredSums> block_sums_;     // per block, when a coarse look needs it
-  // Per block: kSummed, block_sums_ holds its sums; kHoldsScattered, the fine pass left
-  // scattered samples in it. Both cleared by compact().
+  std::span<BlockOrder> block_order_;    // blocks as compact() laid them out
+  std::size_t ordered_blocks_ = 0;       // entries of block_order_ (block_count_ then)
+  std::span<CentredSums> centred_sums_;  // per sample, about its block's centre (compact())
+  std::span<CentredSums> block_sums_;    // per block, when a coarse look needs it
+  // Per block: kSummed, block_sums_ holds its sums (kept from one compact() to the next with
+  // kept shapes, for the blocks whose samples did not change); kHoldsScattered, the fine pass
+  // left scattered samples in it.
   std::span<std::uint8_t> block_summed_;
   static constexpr std::uint8_t kSummed = 1;
   static constexpr std::uint8_t kHoldsScattered = 2;
