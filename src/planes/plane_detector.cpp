@@ -328,10 +328,8 @@ bool PlaneDetector::replay_settled_section(const SectionCache::Entry& before, Ce
   }
   // What it took last time, per block, before its claims are forgotten (cells that left the
   // window among them) and made again for the samples that are there and free.
-  std::array<std::uint64_t, SectionCache::kMaxBlocksPerSection *
-                                SectionCache::kMaxBlocksPerSection *
-                                SectionCache::kMaxBlocksPerSection>
-      taken{};
+  constexpr std::size_t kEdge = SectionCache::kMaxBlocksPerSection;
+  std::array<std::uint64_t, kEdge * kEdge * kEdge> taken{};
   BLOCKMAP_CHECK_MSG(blocks.size() <= taken.size(), "a kept section of more than 2 x 2 x 2 blocks");
   for (std::size_t k = 0; k < blocks.size(); ++k) {
     taken[k] = cache_.taken_by(section, blocks[k], voxels_.block_key(blocks[k])) &
