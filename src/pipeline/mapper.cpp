@@ -539,8 +539,10 @@ void Mapper::give_detector_the_window() noexcept {
   // The detector keeps its grid from one extraction to the next and is given only the samples
   // that gained points (samples that left went as their tile did); or it starts over.
   if (config_.incremental_extraction && extracted_before_) {
+    // The detector's table is read at random: each sample's slot is fetched a few ahead.
     window_.for_each_touched(
-        [this](const planes::VoxelSums& sample) { detector_.set_sample(sample); });
+        [this](const planes::VoxelSums& sample) { detector_.set_sample(sample); },
+        [this](const planes::VoxelSums& sample) { detector_.prefetch_sample(sample.key); });
     ++counters_.incremental_extractions;
   } else {
     detector_.clear();

@@ -742,6 +742,10 @@ void VoxelGrid::add_sums(const VoxelSums& sums) noexcept {
   sums_changed(sums.key);
 }
 
+void VoxelGrid::prefetch(CellKey key) const noexcept {
+  __builtin_prefetch(&table_[home_slot(key)]);
+}
+
 void VoxelGrid::set_sums(const VoxelSums& sums) noexcept {
   const std::uint32_t id = slot_for(sums);
   if (id == CellIndex::kAbsent) {

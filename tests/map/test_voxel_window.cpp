@@ -2,6 +2,7 @@
 // that leave are handed over whole and their samples come back to the pool.
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <vector>
 
 #include "blockmap/core/arena.hpp"
@@ -74,8 +75,17 @@ TEST(VoxelWindow, DropsAndCountsWhatItCannotTake) {
   w.window.add_point(Eigen::Vector3f(6.5f, 0.0f, 0.0f));
   w.window.add_point(Eigen::Vector3f(-3.3f, 0.0f, 0.0f));
   w.window.add_point(Eigen::Vector3f(std::numeric_limits<float>::quiet_NaN(), 0.0f, 0.0f));
-  EXPECT_EQ(w.window.counters().points_outside, 2u);
+  // Far beyond any key (a corrupt range): outside, and never converted to an integer.
+  w.window.add_point(Eigen::Vector3f(0.0f, 0.0f, 1e30f));
+  EXPECT_EQ(w.window.counters().points_outside, 3u);
   EXPECT_EQ(w.window.counters().points_non_finite, 1u);
+  // In batches (add_points), the same.
+  const std::vector<Eigen::Vector3f> odd{
+      Eigen::Vector3f(-1e30f, 0.0f, 0.0f),
+      Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity())};
+  w.window.add_points(odd);
+  EXPECT_EQ(w.window.counters().points_outside, 4u);
+  EXPECT_EQ(w.window.counters().points_non_finite, 2u);
   const Eigen::AlignedBox2d bounds = w.window.bounds_m();
   EXPECT_NEAR(bounds.min().x(), -3.2, 1e-9);
   EXPECT_NEAR(bounds.max().y(), 6.4, 1e-9);

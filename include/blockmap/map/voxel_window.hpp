@@ -12,9 +12,11 @@
 // after init(); a point that finds the pool full is dropped and counted.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <string>
+#include <utility>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -97,15 +99,27 @@ class VoxelWindow {
   }
 
   // The samples that gained points since forget_touched() (each once), in the order they
-  // first did; a tile that left since may have taken some (those are skipped).
-  template <typename Visit>  // void(const planes::VoxelSums&)
-  void for_each_touched(Visit&& visit) const {
+  // first did; a tile that left since may have taken some (those are skipped). `ahead` sees
+  // each sample a few visits before `visit` does, to fetch what the visit will read.
+  template <typename Visit, typename Ahead>  // void(const planes::VoxelSums&), both
+  void for_each_touched(Visit&& visit, Ahead&& ahead) const {
+    constexpr std::size_t kAhead = 8;
+    for (std::size_t i = 0; i < std::min(kAhead, touched_count_); ++i) {
+      ahead(samples_[touched_[i]]);
+    }
     for (std::size_t i = 0; i < touched_count_; ++i) {
+      if (i + kAhead < touched_count_) {
+        ahead(samples_[touched_[i + kAhead]]);
+      }
       const planes::VoxelSums& sample = samples_[touched_[i]];
       if (sample.key != planes::kNoCell) {
         visit(sample);
       }
     }
+  }
+  template <typename Visit>  // void(const planes::VoxelSums&)
+  void for_each_touched(Visit&& visit) const {
+    for_each_touched(std::forward<Visit>(visit), [](const planes::VoxelSums&) {});
   }
   void forget_touched() noexcept;
 

@@ -69,6 +69,8 @@ class PlaneDetector {
   // A sample as it is now (keep_shapes: the next detect() estimates shapes again only around
   // the samples set or added since the last one).
   void set_sample(const VoxelSums& sample) noexcept { voxels_.set_sums(sample); }
+  // A hint that `key` is set or added soon: its slot is fetched.
+  void prefetch_sample(CellKey key) const noexcept { voxels_.prefetch(key); }
   // A sample gone with all its points (a tile left the window).
   void remove_sample(CellKey key) noexcept { voxels_.erase(key); }
 

@@ -217,6 +217,8 @@ class VoxelGrid {
   void add_sums(const VoxelSums& sums) noexcept;
   // Sets a voxel's sums to what they are now elsewhere (the mapper's window), creating it.
   void set_sums(const VoxelSums& sums) noexcept;
+  // Fetches the table slot where `key` lives or would (a hint; nothing changes).
+  void prefetch(CellKey key) const noexcept;
   // Takes a voxel out with all its points (a tile left the mapper's window); nothing when it
   // is not there. Its slot, and its block when that empties, serve new voxels; with kept
   // shapes, the blocks around it are estimated again.
