@@ -221,16 +221,16 @@ void PlaneDetector::vote_sample(const Voxel& voxel, const Eigen::Vector3f& posit
     }
     return;
   }
+  const auto vote_kernel = [&](std::span<const std::uint32_t> rows) {
+    accumulator_.vote_rows(rows, position_m, weight);
+    stats_.votes += rows.size();
+  };
   switch (voxel.shape) {
     case LocalShape::kPlanar:
-      for (const std::uint32_t row : orientations_.surface_kernel(voxel.axis_cell)) {
-        vote(row);
-      }
+      vote_kernel(orientations_.surface_kernel(voxel.axis_cell));
       break;
     case LocalShape::kLinear:
-      for (const std::uint32_t row : orientations_.line_kernel(voxel.axis_cell)) {
-        vote(row);
-      }
+      vote_kernel(orientations_.line_kernel(voxel.axis_cell));
       break;
     case LocalShape::kTooFewPoints:
     case LocalShape::kScattered:

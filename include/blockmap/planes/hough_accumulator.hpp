@@ -53,6 +53,33 @@ class HoughAccumulator {
     has_negative_votes_ = has_negative_votes_ || weight < 0.0f;
   }
 
+  // The same for each row of a kernel, in order. What every vote reads is read once: the
+  // stores into the float grid would otherwise make the compiler read the bin size, the range
+  // and the row normals' arrays again at every vote (they could be the same floats).
+  void vote_rows(std::span<const std::uint32_t> rows, const Eigen::Vector3f& position_m,
+                 float weight) noexcept {
+    const Eigen::Vector3f* normals = grid_->cell_normals().data();
+    const std::uint32_t* row_cells = grid_->row_cells().data();
+    const float half_range_m = half_range_m_;
+    const float inverse_bin_m = inverse_bin_m_;
+    const std::uint32_t d_bins = d_bins_;
+    float* votes = votes_.data();
+    for (const std::uint32_t row : rows) {
+      const float d = normals[row_cells[row]].dot(position_m);
+      const float bin_f = (d + half_range_m) * inverse_bin_m;
+      if (!(bin_f >= 0.0f) || bin_f >= static_cast<float>(d_bins)) {
+        continue;
+      }
+      const std::size_t cell =
+          static_cast<std::size_t>(row) * d_bins + static_cast<std::uint32_t>(bin_f);
+      if (votes[cell] == 0.0f) {
+        remember(cell);
+      }
+      votes[cell] += weight;
+    }
+    has_negative_votes_ = has_negative_votes_ || (weight < 0.0f && !rows.empty());
+  }
+
   [[nodiscard]] float votes(std::uint32_t row, std::uint32_t d_bin) const noexcept {
     return votes_[static_cast<std::size_t>(row) * d_bins_ + d_bin];
   }

@@ -55,6 +55,11 @@ class OrientationGrid {
   [[nodiscard]] const Eigen::Vector3f& row_normal(std::uint32_t row) const noexcept {
     return cell_normal_[row_cell_[row]];
   }
+  // What row_normal() reads: every cell's normal, and each row's cell.
+  [[nodiscard]] std::span<const Eigen::Vector3f> cell_normals() const noexcept {
+    return cell_normal_;
+  }
+  [[nodiscard]] std::span<const std::uint32_t> row_cells() const noexcept { return row_cell_; }
   [[nodiscard]] std::span<const std::uint32_t> surface_kernel(std::uint32_t cell) const noexcept {
     return flat_.subspan(surface_first_[cell], surface_first_[cell + 1] - surface_first_[cell]);
   }
