@@ -39,18 +39,7 @@ class HoughAccumulator {
   // One sample of `weight` points at position_m (relative to the section centre) votes for
   // the plane through it in the given row. Offsets outside the range are not counted.
   void vote(std::uint32_t row, const Eigen::Vector3f& position_m, float weight) noexcept {
-    const float d = grid_->row_normal(row).dot(position_m);
-    const float bin_f = (d + half_range_m_) * inverse_bin_m_;
-    if (!(bin_f >= 0.0f) || bin_f >= static_cast<float>(d_bins_)) {
-      return;
-    }
-    const std::size_t cell =
-        static_cast<std::size_t>(row) * d_bins_ + static_cast<std::uint32_t>(bin_f);
-    if (votes_[cell] == 0.0f) {
-      remember(cell);
-    }
-    votes_[cell] += weight;
-    has_negative_votes_ = has_negative_votes_ || weight < 0.0f;
+    vote_rows(std::span<const std::uint32_t>(&row, 1), position_m, weight);
   }
 
   // The same for each row of a kernel, in order. What every vote reads is read once: the
