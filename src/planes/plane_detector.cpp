@@ -397,19 +397,23 @@ void PlaneDetector::replay_section(const SectionCache::Entry& before, CellKey se
   for (const std::uint32_t block : blocks) {
     const std::uint64_t live = voxels_.live_mask(block);
     const std::uint32_t first = voxels_.block_range(block).first;
-    for (std::uint64_t cells = cache_.taken_by(section, block, voxels_.block_key(block));
-         cells != 0; cells &= cells - 1) {
+    for (std::uint64_t cells = cache_.retake(section, block, voxels_.block_key(block)); cells != 0;
+         cells &= cells - 1) {
       const auto bit = static_cast<std::uint32_t>(std::countr_zero(cells));
       const std::uint64_t below = live & ((std::uint64_t{1} << bit) - 1);
-      take_sample(voxels[first + static_cast<std::uint32_t>(std::popcount(below))], owner, section);
+      claim_sample(voxels[first + static_cast<std::uint32_t>(std::popcount(below))], owner);
     }
   }
 }
 
-void PlaneDetector::take_sample(Voxel& voxel, std::int32_t owner, CellKey section) noexcept {
+void PlaneDetector::claim_sample(Voxel& voxel, std::int32_t owner) noexcept {
   voxel.owner = owner;
   block_free_points_[voxel.block] -= votes(voxel) ? voxel.point_count : 0;
   ++stats_.samples_taken;
+}
+
+void PlaneDetector::take_sample(Voxel& voxel, std::int32_t owner, CellKey section) noexcept {
+  claim_sample(voxel, owner);
   if (caching_) {
     const auto cell = unpack_cell(voxel.key);
     cache_.take(section, voxel.block, voxels_.block_key(voxel.block),

@@ -28,21 +28,27 @@ std::uint64_t bits_of(float a, float b) noexcept {
 constexpr std::size_t kCodeWords = 4;  // 64 cells, a nibble each
 constexpr std::uint64_t kNibbles = 0x1111111111111111ULL;
 
+// The nibbles of `flags` (each 0 or 1 in its lowest bit) packed into 16 bits, nibble n to bit
+// n: each step halves the gaps between the flags, without a branch per flag.
+constexpr std::uint64_t packed_nibble_flags(std::uint64_t flags) noexcept {
+  flags = (flags | (flags >> 3)) & 0x0303030303030303ULL;
+  flags = (flags | (flags >> 6)) & 0x000F000F000F000FULL;
+  flags = (flags | (flags >> 12)) & 0x000000FF000000FFULL;
+  return (flags | (flags >> 24)) & 0xFFFFULL;
+}
+static_assert(packed_nibble_flags(0x1000000000000001ULL) == 0x8001ULL);
+static_assert(packed_nibble_flags(0x0101010101010101ULL) == 0x5555ULL);
+
 // The cells (a 64-bit block mask) whose nibble in `words` equals `code`.
 std::uint64_t cells_with_code(const std::uint64_t* words, std::uint32_t code) noexcept {
   std::uint64_t cells = 0;
   for (std::size_t w = 0; w < kCodeWords; ++w) {
     // A nibble equal to code becomes 0 after the xor; folding each nibble's bits into its
-    // lowest marks the non-zero ones.
+    // lowest marks the non-zero ones. Nibble n of word w is cell 16 w + n.
     std::uint64_t diff = words[w] ^ (kNibbles * code);
     diff |= diff >> 1;
     diff |= diff >> 2;
-    std::uint64_t equal = ~diff & kNibbles;
-    // Nibble n of word w is cell 16 w + n.
-    for (; equal != 0; equal &= equal - 1) {
-      const auto nibble = static_cast<std::uint32_t>(std::countr_zero(equal)) / 4;
-      cells |= std::uint64_t{1} << (16 * w + nibble);
-    }
+    cells |= packed_nibble_flags(~diff & kNibbles) << (16 * w);
   }
   return cells;
 }
@@ -200,6 +206,14 @@ const SectionCache::Entry* SectionCache::previous(CellKey section) noexcept {
 std::uint64_t SectionCache::taken_by(CellKey section, std::uint32_t block,
                                      CellKey block_key) const noexcept {
   return cells_with_code(&taken_codes_[block * kCodeWords], offset_code(section, block_key));
+}
+
+std::uint64_t SectionCache::retake(CellKey section, std::uint32_t block,
+                                   CellKey block_key) noexcept {
+  // Their nibbles already hold this section's offset: only this detection's mask is new.
+  const std::uint64_t cells = taken_by(section, block, block_key);
+  taken_cells_[block] |= cells;
+  return cells;
 }
 
 void SectionCache::forget_taken(CellKey section, std::span<const std::uint32_t> blocks,

@@ -111,6 +111,8 @@ class PlaneDetector {
                       std::span<const std::uint32_t> blocks) noexcept;
   // A sample taken by a plane of `section`: it neither votes nor counts for later sections.
   void take_sample(Voxel& voxel, std::int32_t owner, CellKey section) noexcept;
+  // take_sample() without the cache's record (a replay: the cache took it again itself).
+  void claim_sample(Voxel& voxel, std::int32_t owner) noexcept;
   // Whether a sample votes at all (the local-shape mode skips scattered samples).
   [[nodiscard]] bool votes(const Voxel& voxel) const noexcept;
   void vote_sample(const Voxel& voxel, const Eigen::Vector3f& position_m) noexcept;

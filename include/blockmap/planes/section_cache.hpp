@@ -75,6 +75,9 @@ class SectionCache {
   // The cells of `block` that `section` took last time (a mask of bits in the block).
   [[nodiscard]] std::uint64_t taken_by(CellKey section, std::uint32_t block,
                                        CellKey block_key) const noexcept;
+  // `section` takes again, in this detection, the cells of `block` it took last time (a
+  // replay: what take() would do for each of them); returns them.
+  std::uint64_t retake(CellKey section, std::uint32_t block, CellKey block_key) noexcept;
   // Forgets what `section` took in these blocks (it is searched again).
   void forget_taken(CellKey section, std::span<const std::uint32_t> blocks,
                     const VoxelGrid& grid) noexcept;
