@@ -1,6 +1,7 @@
 #include "blockmap/planes/polygon.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -36,8 +37,48 @@ std::pair<Eigen::Vector3d, Eigen::Vector3d> plane_basis(
   return {u, normal_unit.cross(u).normalized()};
 }
 
+namespace {
+
+std::size_t drop_points_inside_extremes(std::span<Eigen::Vector2d> points) noexcept {
+  // Akl and Toussaint: the points furthest left, down, right and up span a quadrilateral
+  // inside the hull; a point well inside it is no hull vertex (a merged wall's section
+  // corners are mostly such points). The margin keeps every point near an edge, so that the
+  // chain decides those as it would with all points.
+  std::array<std::size_t, 4> extreme{};  // left, bottom, right, top: counter-clockwise
+  for (std::size_t i = 1; i < points.size(); ++i) {
+    const Eigen::Vector2d& p = points[i];
+    extreme[0] = p.x() < points[extreme[0]].x() ? i : extreme[0];
+    extreme[1] = p.y() < points[extreme[1]].y() ? i : extreme[1];
+    extreme[2] = p.x() > points[extreme[2]].x() ? i : extreme[2];
+    extreme[3] = p.y() > points[extreme[3]].y() ? i : extreme[3];
+  }
+  std::array<Eigen::Vector2d, 4> corner;
+  for (std::size_t e = 0; e < corner.size(); ++e) {
+    corner[e] = points[extreme[e]];
+  }
+  const double extent = (corner[2].x() - corner[0].x()) + (corner[3].y() - corner[1].y());
+  const double margin = 1e-9 * extent * extent;
+  std::size_t kept = 0;
+  for (const Eigen::Vector2d& p : points) {
+    bool well_inside = true;
+    for (std::size_t e = 0; e < corner.size() && well_inside; ++e) {
+      well_inside = cross(corner[e], corner[(e + 1) % corner.size()], p) > margin;
+    }
+    if (!well_inside) {
+      points[kept++] = p;
+    }
+  }
+  return kept;
+}
+
+}  // namespace
+
 std::size_t convex_hull(std::span<Eigen::Vector2d> points,
                         std::span<Eigen::Vector2d> hull) noexcept {
+  constexpr std::size_t kFewPoints = 16;  // below this, sorting them all is as quick
+  if (points.size() > kFewPoints) {
+    points = points.first(drop_points_inside_extremes(points));
+  }
   const std::size_t n = points.size();
   if (n < 3) {
     std::copy(points.begin(), points.end(), hull.begin());

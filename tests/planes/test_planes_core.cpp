@@ -1165,5 +1165,61 @@ TEST(Polygon, HullGapAndSimplification) {
   EXPECT_EQ(simplify_polygon(circle, circle.size(), 16), 16u);
 }
 
+// Gift wrapping, for comparison: the hull's vertices counter-clockwise from the lowest-left
+// point, collinear points between two vertices left out.
+std::vector<Eigen::Vector2d> wrapped_hull(const std::vector<Eigen::Vector2d>& points) {
+  const auto cross = [](const Eigen::Vector2d& o, const Eigen::Vector2d& a,
+                        const Eigen::Vector2d& b) {
+    return (a - o).x() * (b - o).y() - (a - o).y() * (b - o).x();
+  };
+  const auto lowest = std::min_element(
+      points.begin(), points.end(),
+      [](const auto& a, const auto& b) { return a.x() != b.x() ? a.x() < b.x() : a.y() < b.y(); });
+  std::vector<Eigen::Vector2d> hull{*lowest};
+  for (;;) {
+    Eigen::Vector2d next = hull.back() == points[0] ? points[1] : points[0];
+    for (const Eigen::Vector2d& q : points) {
+      const double turn = cross(hull.back(), next, q);
+      if (turn < 0.0 || (turn == 0.0 && (q - hull.back()).norm() > (next - hull.back()).norm())) {
+        next = q;
+      }
+    }
+    if (next == hull.front()) {
+      return hull;
+    }
+    hull.push_back(next);
+  }
+}
+
+TEST(Polygon, AHullOfManyPointsHasTheVerticesOfGiftWrapping) {
+  // A merged wall's section corners: a grid of corners, most inside, many on its edges; and a
+  // random cloud turned by some angle.
+  std::vector<Eigen::Vector2d> corners;
+  for (int x = 0; x <= 40; ++x) {
+    for (int y = 0; y <= 6; ++y) {
+      corners.emplace_back(0.8 * x, 0.8 * y);
+    }
+  }
+  std::mt19937 random(7);
+  std::shuffle(corners.begin(), corners.end(), random);
+  std::normal_distribution<double> normal(0.0, 3.0);
+  std::vector<Eigen::Vector2d> cloud;
+  for (int i = 0; i < 500; ++i) {
+    cloud.emplace_back(20.0 + 4.0 * normal(random), -7.0 + normal(random));
+  }
+  for (const std::vector<Eigen::Vector2d>* points : {&corners, &cloud}) {
+    std::vector<Eigen::Vector2d> input = *points;
+    std::vector<Eigen::Vector2d> hull(input.size() + 1);
+    hull.resize(convex_hull(input, hull));
+    const std::vector<Eigen::Vector2d> expected = wrapped_hull(*points);
+    ASSERT_EQ(hull.size(), expected.size());
+    // The same cycle, from the same first vertex (both start lowest-left).
+    for (std::size_t i = 0; i < hull.size(); ++i) {
+      EXPECT_EQ(hull[i], expected[i]) << i;
+    }
+  }
+  EXPECT_EQ(wrapped_hull(corners).size(), 4u);
+}
+
 }  // namespace
 }  // namespace blockmap::planes
