@@ -14,6 +14,9 @@ void SectionGrid::init(Arena& arena, std::size_t max_blocks, std::uint32_t block
   blocks_per_section_ = blocks_per_section;
   block_size_m_ = block_size_m;
   blocks_ = arena.allocate_array<KeyedBlock>(max_blocks, "planes.section_grid");
+  listed_key_ = arena.allocate_array<CellKey>(max_blocks, "planes.section_grid");
+  std::fill(listed_key_.begin(), listed_key_.end(), kNoCell);
+  listed_count_ = 0;
   // Every block lies in k^3 sections, so there are at most k^3 sections per block, and as
   // many section-block pairs.
   const std::size_t pairs =
@@ -28,13 +31,70 @@ std::size_t SectionGrid::arena_bytes(std::size_t max_blocks,
                                      std::uint32_t blocks_per_section) noexcept {
   const std::size_t pairs =
       max_blocks * blocks_per_section * blocks_per_section * blocks_per_section;
-  return max_blocks * sizeof(KeyedBlock) + pairs * sizeof(CellKey) +
+  return max_blocks * (sizeof(KeyedBlock) + sizeof(CellKey)) + pairs * sizeof(CellKey) +
          (2 * pairs + 1) * sizeof(std::uint32_t) +
-         std::size_t{256};  // four allocations, 64-byte aligned
+         std::size_t{320};  // five allocations, 64-byte aligned
 }
 
 void SectionGrid::build(const VoxelGrid& grid) noexcept {
   counters_ = Counters{};
+  merge_shifted_block_lists(list_occupied_blocks(grid));
+}
+
+std::size_t SectionGrid::list_occupied_blocks(const VoxelGrid& grid) noexcept {
+  // Between two extractions a few blocks come or go: last time's sorted list keeps the ones
+  // still there (same index, same key, samples in it), and the new ones, sorted apart at the
+  // far end of the array, are merged in from the back. Keys are unique, so the list is the
+  // one a sort of every block gives.
+  const auto by_key = [](const KeyedBlock& a, const KeyedBlock& b) { return a.key < b.key; };
+  const auto occupied = [&grid](std::size_t block) { return grid.block_range(block).count > 0; };
+  if (grid.block_count() > listed_key_.size()) {
+    return list_every_block(grid, listed_count_);  // more blocks than room: as many as fit
+  }
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < listed_count_; ++i) {
+    const KeyedBlock entry = blocks_[i];
+    if (entry.block < grid.block_count() && grid.block_key(entry.block) == entry.key &&
+        occupied(entry.block)) {
+      blocks_[kept++] = entry;
+    } else {
+      listed_key_[entry.block] = kNoCell;
+    }
+  }
+  const std::size_t end = blocks_.size();
+  std::size_t fresh = 0;
+  for (std::size_t block = 0; block < grid.block_count(); ++block) {
+    if (!occupied(block) || listed_key_[block] == grid.block_key(block)) {
+      continue;
+    }
+    // A placed entry written at kept + fresh - 1 would land on a fresh one not yet read.
+    if (kept + 2 * (fresh + 1) > end) {
+      return list_every_block(grid, kept);
+    }
+    blocks_[end - ++fresh] = KeyedBlock{grid.block_key(block), static_cast<std::uint32_t>(block)};
+  }
+  std::sort(blocks_.begin() + static_cast<std::ptrdiff_t>(end - fresh), blocks_.end(), by_key);
+  std::size_t out = kept + fresh;
+  std::size_t a = kept;   // kept entries left to merge, from the back
+  std::size_t b = fresh;  // fresh ones
+  while (b > 0) {
+    const KeyedBlock next_fresh = blocks_[end - fresh + b - 1];
+    if (a > 0 && by_key(next_fresh, blocks_[a - 1])) {
+      blocks_[--out] = blocks_[--a];
+    } else {
+      listed_key_[next_fresh.block] = next_fresh.key;
+      blocks_[--out] = next_fresh;
+      --b;
+    }
+  }
+  listed_count_ = kept + fresh;
+  return listed_count_;
+}
+
+std::size_t SectionGrid::list_every_block(const VoxelGrid& grid, std::size_t listed) noexcept {
+  for (std::size_t i = 0; i < listed; ++i) {
+    listed_key_[blocks_[i].block] = kNoCell;
+  }
   std::size_t block_count = 0;
   for (std::size_t block = 0; block < grid.block_count(); ++block) {
     if (grid.block_range(block).count > 0 && block_count < blocks_.size()) {
@@ -43,7 +103,13 @@ void SectionGrid::build(const VoxelGrid& grid) noexcept {
   }
   std::sort(blocks_.begin(), blocks_.begin() + static_cast<std::ptrdiff_t>(block_count),
             [](const KeyedBlock& a, const KeyedBlock& b) { return a.key < b.key; });
-  merge_shifted_block_lists(block_count);
+  // What is listed is kept for the next build only when every block had room.
+  const bool complete = grid.block_count() <= listed_key_.size();
+  for (std::size_t i = 0; complete && i < block_count; ++i) {
+    listed_key_[blocks_[i].block] = blocks_[i].key;
+  }
+  listed_count_ = complete ? block_count : 0;
+  return block_count;
 }
 
 void SectionGrid::merge_shifted_block_lists(std::size_t block_count) noexcept {

@@ -49,11 +49,15 @@ class SectionGrid {
   [[nodiscard]] static std::span<const CellKey, 13> later_neighbour_offsets() noexcept;
   [[nodiscard]] const Counters& counters() const noexcept { return counters_; }
   [[nodiscard]] std::size_t memory_bytes() const noexcept {
-    return blocks_.size_bytes() + sections_.size_bytes() + section_first_.size_bytes() +
-           section_blocks_.size_bytes();
+    return blocks_.size_bytes() + listed_key_.size_bytes() + sections_.size_bytes() +
+           section_first_.size_bytes() + section_blocks_.size_bytes();
   }
 
  private:
+  // The occupied blocks of `grid`, sorted by key, in blocks_; returns their count.
+  std::size_t list_occupied_blocks(const VoxelGrid& grid) noexcept;
+  // The same, sorted afresh (`listed`: how many of blocks_ are listed now).
+  std::size_t list_every_block(const VoxelGrid& grid, std::size_t listed) noexcept;
   void merge_shifted_block_lists(std::size_t block_count) noexcept;
 
   std::uint32_t blocks_per_section_ = 2;
@@ -62,7 +66,9 @@ class SectionGrid {
     CellKey key = 0;
     std::uint32_t block = 0;  // its index in the voxel grid
   };
-  std::span<KeyedBlock> blocks_;  // the occupied blocks, sorted by key
+  std::span<KeyedBlock> blocks_;   // the occupied blocks, sorted by key
+  std::size_t listed_count_ = 0;   // how many, as the last build() listed them
+  std::span<CellKey> listed_key_;  // per block index: its key in blocks_, or kNoCell
   std::span<CellKey> sections_;
   // Section i's blocks are section_blocks_[section_first_[i], section_first_[i + 1]): the
   // merge sees them (the list heads equal to the section), so no lookup finds them again.
