@@ -259,6 +259,11 @@ void PlaneDetector::detect_in_section(std::size_t index) noexcept {
     if (before != nullptr && before->took_samples != 0) {
       cache_.forget_taken(section, blocks, voxels_);
     }
+    if (before != nullptr && before->plane_count == 0 && before->took_samples == 0) {
+      // A barren section that an earlier one has taken points from, for now, keeps its last
+      // search: when it has them back it is as barren as it was (still_barren()).
+      cache_.record(*before);
+    }
     return;
   }
   ++stats_.sections_searched;

@@ -964,8 +964,41 @@ TEST(PlaneDetector, ABarrenSectionIsSearchedAgainOnceItHasGrownByTheFraction) {
       EXPECT_EQ(a_tenth.sections_replayed, 0u) << "every section changed";
     }
 
-    // 30 % more than when they were last searched: searched again, whatever the fraction.
-    for (const VoxelSums& sample : ramp_seen(13)) {
+    // For a while a seventh of the samples, with a point each (the rest occluded): under
+    // min_votes nothing is searched, and a barren section keeps its last search. Back at a
+    // fifth more than then, it still waits (unless it had lost every sample).
+    for (VoxelSums sample : ramp_seen(10)) {
+      const auto cell = unpack_cell(sample.key);
+      if ((cell.x() + cell.y() + cell.z()) % 7 != 0) {
+        kept.detector.remove_sample(sample.key);
+        continue;
+      }
+      const float scale = 1.0f / static_cast<float>(sample.point_count);
+      sample.point_count = 1;
+      for (float& sum : sample.sum_m) {
+        sum *= scale;
+      }
+      for (float& sum : sample.sum_outer_m2) {
+        sum *= scale;
+      }
+      kept.detector.set_sample(sample);
+    }
+    EXPECT_TRUE(kept.detector.detect().empty());
+    ASSERT_EQ(kept.detector.stats().sections_searched, 0u) << "every section under min_votes";
+    for (const VoxelSums& sample : ramp_seen(12)) {
+      kept.detector.set_sample(sample);
+    }
+    EXPECT_TRUE(kept.detector.detect().empty());
+    EXPECT_EQ(kept.detector.stats().sections_searched, searched);
+    if (growth > 0.0) {
+      EXPECT_GT(kept.detector.stats().sections_still_barren, searched * 3 / 4);
+    } else {
+      EXPECT_EQ(kept.detector.stats().sections_still_barren, 0u);
+    }
+
+    // A third more than when they were last searched (at 10 or 12 looks): searched again,
+    // whatever the fraction.
+    for (const VoxelSums& sample : ramp_seen(16)) {
       kept.detector.set_sample(sample);
     }
     EXPECT_TRUE(kept.detector.detect().empty());
