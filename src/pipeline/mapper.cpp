@@ -529,8 +529,17 @@ void Mapper::refit_buildings() noexcept {
 void Mapper::TileLeaving::on_evicted(const map::VoxelWindow::EvictedTile& tile) noexcept {
   mapper_->registry_.on_evicted(tile);
   if (mapper_->config_.incremental_extraction && mapper_->extracted_before_) {
-    for (const planes::VoxelSums& sample : tile.samples) {
-      mapper_->detector_.remove_sample(sample.key);
+    // The detector's table is read at random: each sample's slot is fetched a few ahead.
+    constexpr std::size_t kAhead = 8;
+    const std::span<const planes::VoxelSums> samples = tile.samples;
+    for (std::size_t i = 0; i < std::min(kAhead, samples.size()); ++i) {
+      mapper_->detector_.prefetch_sample(samples[i].key);
+    }
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+      if (i + kAhead < samples.size()) {
+        mapper_->detector_.prefetch_sample(samples[i + kAhead].key);
+      }
+      mapper_->detector_.remove_sample(samples[i].key);
     }
   }
 }

@@ -466,39 +466,39 @@ std::uint64_t VoxelGrid::load_block(std::uint32_t block, std::uint64_t cells,
   return live;
 }
 
+void VoxelGrid::prefetch_block_cells(std::uint32_t block) const noexcept {
+  // A block's cells hash to the slots after the home slot of its first cell (offset by their
+  // bit); the table is tens of MiB, so a walk over blocks fetches the slots of a block a few
+  // places on while it reads this one's.
+  const Eigen::Matrix<std::int64_t, 3, 1> base = unpack_cell(block_keys_[block]) * kBlockEdge;
+  const std::size_t home = home_slot(pack_cell(base.x(), base.y(), base.z()));
+  // Written out, not as a loop: GCC deletes a loop whose only effect is a prefetch. Most
+  // blocks hold fewer than six samples.
+  std::uint64_t cells = block_masks_[block];
+  const auto fetch_lowest_cell = [&] {
+    if (cells != 0) {
+      __builtin_prefetch(
+          &table_[(home + static_cast<std::size_t>(std::countr_zero(cells))) & mask_]);
+      cells &= cells - 1;
+    }
+  };
+  fetch_lowest_cell();
+  fetch_lowest_cell();
+  fetch_lowest_cell();
+  fetch_lowest_cell();
+  fetch_lowest_cell();
+  fetch_lowest_cell();
+}
+
 void VoxelGrid::lay_out_all_blocks() noexcept {
   count_ = 0;
-  // A block's cells hash to the slots after the home slot of its first cell (offset by their
-  // bit); the table is tens of MiB, so the slots of the block kAhead places on are fetched
-  // while this one is copied.
   constexpr std::size_t kAhead = 16;
-  const auto prefetch_block = [this](std::size_t i) {
-    const std::uint32_t block = block_order_[i].block;
-    const Eigen::Matrix<std::int64_t, 3, 1> base = unpack_cell(block_keys_[block]) * kBlockEdge;
-    const std::size_t home = home_slot(pack_cell(base.x(), base.y(), base.z()));
-    // Written out, not as a loop: GCC deletes a loop whose only effect is a prefetch. Most
-    // blocks hold fewer than six samples.
-    std::uint64_t cells = block_masks_[block];
-    const auto fetch_lowest_cell = [&] {
-      if (cells != 0) {
-        __builtin_prefetch(
-            &table_[(home + static_cast<std::size_t>(std::countr_zero(cells))) & mask_]);
-        cells &= cells - 1;
-      }
-    };
-    fetch_lowest_cell();
-    fetch_lowest_cell();
-    fetch_lowest_cell();
-    fetch_lowest_cell();
-    fetch_lowest_cell();
-    fetch_lowest_cell();
-  };
   for (std::size_t i = 0; i < std::min(kAhead, block_count_); ++i) {
-    prefetch_block(i);
+    prefetch_block_cells(block_order_[i].block);
   }
   for (std::size_t i = 0; i < block_count_; ++i) {
     if (i + kAhead < block_count_) {
-      prefetch_block(i + kAhead);
+      prefetch_block_cells(block_order_[i + kAhead].block);
     }
     const std::uint32_t block = block_order_[i].block;
     block_first_[block] = static_cast<std::uint32_t>(count_);
@@ -527,10 +527,21 @@ void VoxelGrid::lay_out_changed_blocks() noexcept {
   const auto reloaded = [this](const BlockOrder& entry) {
     return entry.first == kNotLaidOut || (block_flags_[entry.block] & kChanged) != 0;
   };
+  // The table slots of the changed blocks a few places on are fetched while these are read.
+  constexpr std::size_t kAhead = 16;
+  const auto prefetch_reloaded = [&](std::size_t i) {
+    if (i < block_count_ && reloaded(block_order_[i])) {
+      prefetch_block_cells(block_order_[i].block);
+    }
+  };
   // Where each block's samples go: a changed block's live cells are read from the table, a
   // kept one's are as they were. block_first_ takes the new place, the entry keeps the old.
   count_ = 0;
+  for (std::size_t i = 0; i < kAhead; ++i) {
+    prefetch_reloaded(i);
+  }
   for (std::size_t i = 0; i < block_count_; ++i) {
+    prefetch_reloaded(i + kAhead);
     const BlockOrder& entry = block_order_[i];
     if (reloaded(entry)) {
       live_masks_[entry.block] = live_cells(entry.block);
@@ -583,7 +594,11 @@ void VoxelGrid::lay_out_changed_blocks() noexcept {
     run.count += count;
   }
   flush();
+  for (std::size_t i = 0; i < kAhead; ++i) {
+    prefetch_reloaded(i);
+  }
   for (std::size_t i = 0; i < block_count_; ++i) {
+    prefetch_reloaded(i + kAhead);
     const BlockOrder& entry = block_order_[i];
     if (reloaded(entry)) {
       load_block(entry.block, live_masks_[entry.block], block_first_[entry.block]);

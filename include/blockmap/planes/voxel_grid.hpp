@@ -343,6 +343,8 @@ class VoxelGrid {
   void order_blocks(bool keep_placed) noexcept;
   void lay_out_all_blocks() noexcept;
   void lay_out_changed_blocks() noexcept;
+  // Fetches the table slots of a block's cells into the cache (a hint, no effect otherwise).
+  void prefetch_block_cells(std::uint32_t block) const noexcept;
   // The table slot of the cell at `bit` of a block (a cell marked in its block).
   [[nodiscard]] std::uint32_t slot_of_cell(std::uint32_t block, std::uint32_t bit) const noexcept;
   // The cells of a block that hold points now (reads the table).
