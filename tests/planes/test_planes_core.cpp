@@ -1285,6 +1285,7 @@ TEST(Polygon, AHullOfManyPointsHasTheVerticesOfGiftWrapping) {
   std::shuffle(corners.begin(), corners.end(), random);
   std::normal_distribution<double> normal(0.0, 3.0);
   std::vector<Eigen::Vector2d> cloud;
+  cloud.reserve(500);
   for (int i = 0; i < 500; ++i) {
     cloud.emplace_back(20.0 + 4.0 * normal(random), -7.0 + normal(random));
   }
