@@ -1119,49 +1119,57 @@ TEST(VoxelGrid, PointsTakenBackOutLeaveNoSample) {
 
 TEST(SectionGrid, ABuildAfterTheGridChangedListsWhatABuildAfreshLists) {
   // The mapper's grid from one extraction to the next: samples come, go, and it starts over.
+  // With room for every block, with room for them but not to merge the new ones in place,
+  // and with room for fewer blocks than there are.
   constexpr std::size_t kSamples = 8192;
-  Arena arena(VoxelGrid::arena_bytes(kSamples) + SectionGrid::arena_bytes(kSamples, 2));
-  VoxelGrid grid;
-  grid.init(arena, 0.2, kSamples);
-  SectionGrid kept;
-  kept.init(arena, kSamples, 2, 0.8);
-  std::mt19937 random(3);
-  std::uniform_real_distribution<float> along(-6.0f, 6.0f);
-  const auto expect_the_same = [&](int round) {
-    grid.compact();
-    kept.build(grid);
-    // A new section grid's first build is a sort of every block.
-    Arena fresh_arena(SectionGrid::arena_bytes(kSamples, 2));
-    SectionGrid afresh;
-    afresh.init(fresh_arena, kSamples, 2, 0.8);
-    afresh.build(grid);
-    ASSERT_EQ(std::vector<CellKey>(kept.sections().begin(), kept.sections().end()),
-              std::vector<CellKey>(afresh.sections().begin(), afresh.sections().end()))
-        << "round " << round;
-    for (std::size_t i = 0; i < kept.sections().size(); ++i) {
-      const auto a = kept.blocks_of(i);
-      const auto b = afresh.blocks_of(i);
-      ASSERT_EQ(std::vector<std::uint32_t>(a.begin(), a.end()),
-                std::vector<std::uint32_t>(b.begin(), b.end()))
-          << "round " << round << ", section " << i;
+  for (const std::size_t max_blocks :
+       {kSamples, std::size_t{1024}, std::size_t{768}, std::size_t{512}, std::size_t{128}}) {
+    Arena arena(VoxelGrid::arena_bytes(kSamples) + SectionGrid::arena_bytes(max_blocks, 2));
+    VoxelGrid grid;
+    grid.init(arena, 0.2, kSamples);
+    SectionGrid kept;
+    kept.init(arena, max_blocks, 2, 0.8);
+    std::mt19937 random(3);
+    std::uniform_real_distribution<float> along(-6.0f, 6.0f);
+    const auto expect_the_same = [&](int round) {
+      grid.compact();
+      kept.build(grid);
+      // A new section grid's first build is a sort of every block.
+      Arena fresh_arena(SectionGrid::arena_bytes(max_blocks, 2));
+      SectionGrid afresh;
+      afresh.init(fresh_arena, max_blocks, 2, 0.8);
+      afresh.build(grid);
+      ASSERT_EQ(std::vector<CellKey>(kept.sections().begin(), kept.sections().end()),
+                std::vector<CellKey>(afresh.sections().begin(), afresh.sections().end()))
+          << max_blocks << " blocks, round " << round;
+      for (std::size_t i = 0; i < kept.sections().size(); ++i) {
+        const auto a = kept.blocks_of(i);
+        const auto b = afresh.blocks_of(i);
+        ASSERT_EQ(std::vector<std::uint32_t>(a.begin(), a.end()),
+                  std::vector<std::uint32_t>(b.begin(), b.end()))
+            << max_blocks << " blocks, round " << round << ", section " << i;
+      }
+    };
+    std::vector<Eigen::Vector3f> points;
+    for (int round = 0; round < 12; ++round) {
+      if (round == 8) {
+        grid.clear();
+      }
+      points.clear();
+      for (int i = 0; i < 300; ++i) {
+        points.emplace_back(along(random) + static_cast<float>(round), along(random),
+                            0.1f * along(random));
+      }
+      grid.add_points(points);
+      // Some samples leave (a tile of the window did).
+      for (int i = 0; i < 40 && round % 3 == 1; ++i) {
+        grid.erase(grid.voxels()[static_cast<std::size_t>(i) * 3 % grid.size()].key);
+      }
+      expect_the_same(round);
     }
-  };
-  std::vector<Eigen::Vector3f> points;
-  for (int round = 0; round < 12; ++round) {
-    if (round == 8) {
-      grid.clear();
+    if (max_blocks == 128) {
+      EXPECT_GT(grid.block_count(), max_blocks) << "more blocks than room";
     }
-    points.clear();
-    for (int i = 0; i < 300; ++i) {
-      points.emplace_back(along(random) + static_cast<float>(round), along(random),
-                          0.1f * along(random));
-    }
-    grid.add_points(points);
-    // Some samples leave (a tile of the window did).
-    for (int i = 0; i < 40 && round % 3 == 1; ++i) {
-      grid.erase(grid.voxels()[static_cast<std::size_t>(i) * 3 % grid.size()].key);
-    }
-    expect_the_same(round);
   }
 }
 
