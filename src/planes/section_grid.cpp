@@ -4,6 +4,7 @@
 #include <array>
 
 #include "blockmap/core/check.hpp"
+#include "blockmap/core/merge_in_place.hpp"
 
 namespace blockmap::planes {
 
@@ -67,26 +68,14 @@ std::size_t SectionGrid::list_occupied_blocks(const VoxelGrid& grid) noexcept {
     if (!occupied(block) || listed_key_[block] == grid.block_key(block)) {
       continue;
     }
-    // A placed entry written at kept + fresh - 1 would land on a fresh one not yet read.
     if (kept + 2 * (fresh + 1) > end) {
-      return list_every_block(grid, kept);
+      return list_every_block(grid, kept);  // no room to merge in place
     }
     blocks_[end - ++fresh] = KeyedBlock{grid.block_key(block), static_cast<std::uint32_t>(block)};
+    listed_key_[block] = grid.block_key(block);
   }
   std::sort(blocks_.begin() + static_cast<std::ptrdiff_t>(end - fresh), blocks_.end(), by_key);
-  std::size_t out = kept + fresh;
-  std::size_t a = kept;   // kept entries left to merge, from the back
-  std::size_t b = fresh;  // fresh ones
-  while (b > 0) {
-    const KeyedBlock next_fresh = blocks_[end - fresh + b - 1];
-    if (a > 0 && by_key(next_fresh, blocks_[a - 1])) {
-      blocks_[--out] = blocks_[--a];
-    } else {
-      listed_key_[next_fresh.block] = next_fresh.key;
-      blocks_[--out] = next_fresh;
-      --b;
-    }
-  }
+  merge_back_into_front(blocks_, kept, fresh, by_key);
   listed_count_ = kept + fresh;
   return listed_count_;
 }

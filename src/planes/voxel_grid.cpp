@@ -11,6 +11,7 @@
 
 #include "blockmap/core/check.hpp"
 #include "blockmap/core/linear_probing.hpp"
+#include "blockmap/core/merge_in_place.hpp"
 #include "blockmap/planes/fast_trig.hpp"
 
 namespace blockmap::planes {
@@ -367,10 +368,9 @@ void VoxelGrid::order_blocks(bool keep_placed) noexcept {
   const auto placed = [this](std::size_t block) { return (block_flags_[block] & kPlaced) != 0; };
   if (keep_placed) {
     // The fresh ones are merged in from the back (below) while they wait at the far end of
-    // the array: a placed entry written at a + b - 1 (a placed and b fresh entries left)
-    // lands on a fresh one not yet read when kept + 2 x fresh exceeds the array. Then every
-    // block is sorted afresh and laid out from the table; that happens only with the order
-    // nearly full (VoxelGrid.ABlockOrderNearlyFullLaysOutAsAGridBuiltAfresh).
+    // the array, which needs kept + 2 x fresh entries of room (merge_back_into_front). Without
+    // it every block is sorted afresh and laid out from the table; that happens only with the
+    // order nearly full (VoxelGrid.ABlockOrderNearlyFullLaysOutAsAGridBuiltAfresh).
     std::size_t kept = 0;
     for (std::size_t i = 0; i < ordered_blocks_; ++i) {
       kept += placed(block_order_[i].block) ? 1U : 0U;
@@ -408,18 +408,7 @@ void VoxelGrid::order_blocks(bool keep_placed) noexcept {
   }
   const auto fresh_first = block_order_.begin() + static_cast<std::ptrdiff_t>(end - fresh);
   std::sort(fresh_first, block_order_.end(), by_code);
-  std::size_t out = kept + fresh;
-  std::size_t a = kept;   // placed entries left to merge, from the back
-  std::size_t b = fresh;  // fresh ones
-  while (b > 0) {
-    const BlockOrder& next_fresh = block_order_[end - fresh + b - 1];
-    if (a > 0 && by_code(next_fresh, block_order_[a - 1])) {
-      block_order_[--out] = block_order_[--a];
-    } else {
-      block_order_[--out] = next_fresh;
-      --b;
-    }
-  }
+  merge_back_into_front(block_order_, kept, fresh, by_code);
 }
 
 std::uint32_t VoxelGrid::slot_of_cell(std::uint32_t block, std::uint32_t bit) const noexcept {
