@@ -160,6 +160,17 @@ void MappingSession::report(std::ostream& err, double data_s) const {
         static_cast<unsigned long long>(r.final_dropped));
     err << text;
   }
+  if (mapper_.scan_matcher().enabled()) {
+    const localize::ScanMatchCounters& m = mapper_.scan_matcher().counters();
+    std::snprintf(
+        text, sizeof text,
+        "scan matching: %llu scans, %llu matched, %llu with too few points, %llu off "
+        "the map, %llu stepping too far; %llu restarts\n",
+        static_cast<unsigned long long>(m.scans), static_cast<unsigned long long>(m.matched),
+        static_cast<unsigned long long>(m.few_points), static_cast<unsigned long long>(m.off_map),
+        static_cast<unsigned long long>(m.too_far), static_cast<unsigned long long>(m.resets));
+    err << text;
+  }
   if (c.peak_samples_without_room > 0) {
     std::snprintf(text, sizeof text,
                   "mapper: the detector had no room for up to %zu of the window's samples at "

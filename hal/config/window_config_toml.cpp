@@ -55,6 +55,45 @@ pipeline::MapperConfig parse_window_config(std::string_view text, std::string_vi
       throw ConfigError(std::string(source) + ": " + problem);
     }
   }
+  if (auto table = root.table("scan_matching")) {
+    TableReader& t = *table;
+    // Each level laser's scan matched against the grid of the scans before it: poses rigid
+    // over seconds, where GPS alone bends the walls (docs/localize.md, Scan matching).
+    localize::ScanMatchConfig& m = c.scan_matching;
+    m.enabled = t.boolean_or("enabled", m.enabled);
+    m.cell_m = t.positive("cell_m", t.number_or("cell_m", m.cell_m));
+    m.cells_across = static_cast<std::uint32_t>(t.capacity_or("cells_across", m.cells_across));
+    m.levels = static_cast<std::uint32_t>(t.capacity_or("levels", m.levels));
+    m.iterations = static_cast<std::uint32_t>(t.capacity_or("iterations", m.iterations));
+    m.min_height_m = t.number_or("min_height_m", m.min_height_m);
+    m.max_height_m = t.number_or("max_height_m", m.max_height_m);
+    m.point_spacing_m =
+        t.non_negative("point_spacing_m", t.number_or("point_spacing_m", m.point_spacing_m));
+    m.max_match_range_m =
+        t.positive("max_match_range_m", t.number_or("max_match_range_m", m.max_match_range_m));
+    m.map_update_m = t.non_negative("map_update_m", t.number_or("map_update_m", m.map_update_m));
+    m.map_update_rad =
+        t.non_negative("map_update_rad", t.number_or("map_update_rad", m.map_update_rad));
+    m.join_gap_m = t.non_negative("join_gap_m", t.number_or("join_gap_m", m.join_gap_m));
+    m.normal_neighbour_m =
+        t.positive("normal_neighbour_m", t.number_or("normal_neighbour_m", m.normal_neighbour_m));
+    m.max_points = static_cast<std::uint32_t>(t.capacity_or("max_points", m.max_points));
+    m.min_points = static_cast<std::uint32_t>(t.capacity_or("min_points", m.min_points));
+    m.min_overlap = t.in_range("min_overlap", t.number_or("min_overlap", m.min_overlap), 0.0, 1.0);
+    m.max_step_m = t.positive("max_step_m", t.number_or("max_step_m", m.max_step_m));
+    m.max_step_rad = t.positive("max_step_rad", t.number_or("max_step_rad", m.max_step_rad));
+    m.anchor_time_s =
+        t.non_negative("anchor_time_s", t.number_or("anchor_time_s", m.anchor_time_s));
+    m.anchor_heading_lever_m = t.non_negative(
+        "anchor_heading_lever_m", t.number_or("anchor_heading_lever_m", m.anchor_heading_lever_m));
+    m.prior_along_ratio =
+        t.positive("prior_along_ratio", t.number_or("prior_along_ratio", m.prior_along_ratio));
+    m.prior_weight = t.positive("prior_weight", t.number_or("prior_weight", m.prior_weight));
+    t.finish();
+    if (const std::string problem = localize::validate(m); !problem.empty()) {
+      throw ConfigError(std::string(source) + ": " + problem);
+    }
+  }
   if (auto table = root.table("mapper")) {
     TableReader& t = *table;
     // Seconds of scan time between two plane extractions: the plane list's update period,

@@ -41,6 +41,7 @@ void Localizer::init(Arena& arena, const LocalizerConfig& config) {
       arena.allocate_array<Attitude>(config.filter.history_steps + 1, "localize.localizer");
   scratch_ = arena.allocate_array<Pose2>(config.filter.history_steps, "localize.localizer");
   map_poses_ = arena.allocate_array<Pose3>(config.map_pose_capacity, "localize.map_poses");
+  odometry_poses_ = arena.allocate_array<Pose2>(config.map_pose_capacity, "localize.map_poses");
   if (config.map_pose_lag_s > 0.0) {
     lagged_ = arena.allocate_array<BaseMotion>(config.map_pose_lag_samples, "localize.map_poses");
   }
@@ -50,14 +51,15 @@ std::size_t Localizer::arena_bytes(const LocalizerConfig& config) noexcept {
   constexpr std::size_t kAlignment = 64;
   return ParticleFilter::arena_bytes(config.filter) +
          (config.filter.history_steps + 1) * sizeof(Attitude) +
-         config.filter.history_steps * sizeof(Pose2) + config.map_pose_capacity * sizeof(Pose3) +
+         config.filter.history_steps * sizeof(Pose2) +
+         config.map_pose_capacity * (sizeof(Pose3) + sizeof(Pose2)) +
          (config.map_pose_lag_s > 0.0 ? config.map_pose_lag_samples * sizeof(BaseMotion) : 0) +
          4 * kAlignment;
 }
 
 std::size_t Localizer::memory_bytes() const noexcept {
   return filter_.memory_bytes() + attitudes_.size_bytes() + scratch_.size_bytes() +
-         map_poses_.size_bytes() + lagged_.size_bytes();
+         map_poses_.size_bytes() + odometry_poses_.size_bytes() + lagged_.size_bytes();
 }
 
 void Localizer::on_base(const msg::OdometrySample& odometry, const msg::ImuSample& imu) noexcept {
@@ -178,6 +180,10 @@ void Localizer::advance_map_pose(const BaseMotion& motion) noexcept {
   map_pose_.x_m += travel_m * std::cos(heading_rad);
   map_pose_.y_m += travel_m * std::sin(heading_rad);
   map_pose_.yaw_rad = wrapped(map_pose_.yaw_rad + turn_rad);
+  const double odometry_heading_rad = odometry_pose_.yaw_rad + 0.5 * turn_rad;
+  odometry_pose_.x_m += travel_m * std::cos(odometry_heading_rad);
+  odometry_pose_.y_m += travel_m * std::sin(odometry_heading_rad);
+  odometry_pose_.yaw_rad = wrapped(odometry_pose_.yaw_rad + turn_rad);
   // The share of the correction due in dt (an exponential approach to the estimate).
   const double share =
       config_.map_pose_smoothing_s > 0.0 ? std::min(1.0, dt_s / config_.map_pose_smoothing_s) : 1.0;
@@ -205,7 +211,15 @@ void Localizer::pull_map_pose(const Pose2& target, const BaseMotion& motion) noe
     pending_yaw_rad_ = gap_yaw_rad;
     return;
   }
-  counters_.map_pose_snaps += map_started_ ? 1 : 0;
+  if (map_started_) {
+    ++counters_.map_pose_snaps;
+    snap_stamps_[snap_next_] = target.stamp_ns;
+    snap_next_ = (snap_next_ + 1) % snap_stamps_.size();
+    snap_count_ = std::min(snap_count_ + 1, snap_stamps_.size());
+  }
+  if (!map_started_) {
+    odometry_pose_ = target;  // dead reckoning from the first estimate on, never pulled
+  }
   map_started_ = true;
   map_pose_.stamp_ns = target.stamp_ns;
   map_pose_.x_m = target.x_m;
@@ -215,6 +229,16 @@ void Localizer::pull_map_pose(const Pose2& target, const BaseMotion& motion) noe
   pending_y_m_ = 0.0;
   pending_yaw_rad_ = 0.0;
   keep_map_pose(motion);
+}
+
+bool Localizer::map_pose_snapped_between(TimestampNs after_ns,
+                                         TimestampNs until_ns) const noexcept {
+  for (std::size_t i = 0; i < snap_count_; ++i) {
+    if (snap_stamps_[i] > after_ns && snap_stamps_[i] <= until_ns) {
+      return true;
+    }
+  }
+  return false;
 }
 
 void Localizer::keep_map_pose(const BaseMotion& motion) noexcept {
@@ -227,6 +251,7 @@ void Localizer::keep_map_pose(const BaseMotion& motion) noexcept {
     Pose3& newest = map_poses_[(map_first_ + map_count_ - 1) % map_poses_.size()];
     if (newest.stamp_ns == map_pose_.stamp_ns) {
       newest = map_pose_;  // a snap at the stamp of the last sample replaces it
+      odometry_poses_[(map_first_ + map_count_ - 1) % map_poses_.size()] = odometry_pose_;
       return;
     }
   }
@@ -235,6 +260,8 @@ void Localizer::keep_map_pose(const BaseMotion& motion) noexcept {
     --map_count_;
   }
   map_poses_[(map_first_ + map_count_) % map_poses_.size()] = map_pose_;
+  odometry_pose_.stamp_ns = map_pose_.stamp_ns;
+  odometry_poses_[(map_first_ + map_count_) % map_poses_.size()] = odometry_pose_;
   ++map_count_;
 }
 
@@ -253,7 +280,7 @@ bool Localizer::map_pose_horizon(TimestampNs& out) const noexcept {
   return true;
 }
 
-bool Localizer::map_pose_at(TimestampNs stamp_ns, Pose3& out) const noexcept {
+bool Localizer::map_pose_at(TimestampNs stamp_ns, Pose3& out, Pose2* odometry) const noexcept {
   if (map_count_ == 0) {
     return false;
   }
@@ -278,6 +305,10 @@ bool Localizer::map_pose_at(TimestampNs stamp_ns, Pose3& out) const noexcept {
   if (low + 1 == map_count_ || a.stamp_ns == stamp_ns) {
     out = a;
     out.stamp_ns = stamp_ns;
+    if (odometry != nullptr) {
+      *odometry = odometry_poses_[(map_first_ + low) % map_poses_.size()];
+      odometry->stamp_ns = stamp_ns;
+    }
     return true;
   }
   const Pose3& b = at(low + 1);
@@ -290,6 +321,14 @@ bool Localizer::map_pose_at(TimestampNs stamp_ns, Pose3& out) const noexcept {
   out.roll_rad = a.roll_rad + f * (b.roll_rad - a.roll_rad);
   out.pitch_rad = a.pitch_rad + f * (b.pitch_rad - a.pitch_rad);
   out.yaw_rad = wrapped(a.yaw_rad + f * wrapped(b.yaw_rad - a.yaw_rad));
+  if (odometry != nullptr) {
+    const Pose2& oa = odometry_poses_[(map_first_ + low) % map_poses_.size()];
+    const Pose2& ob = odometry_poses_[(map_first_ + low + 1) % map_poses_.size()];
+    odometry->stamp_ns = stamp_ns;
+    odometry->x_m = oa.x_m + f * (ob.x_m - oa.x_m);
+    odometry->y_m = oa.y_m + f * (ob.y_m - oa.y_m);
+    odometry->yaw_rad = wrapped(oa.yaw_rad + f * wrapped(ob.yaw_rad - oa.yaw_rad));
+  }
   return true;
 }
 

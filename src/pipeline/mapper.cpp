@@ -73,6 +73,17 @@ planes::PlanesConfig detector_config(const MapperConfig& config) noexcept {
   return planes;
 }
 
+// Scans are matched only when drawn with the localizer's poses as they come: given poses (a
+// survey's, the simulation's) are what the map should be drawn with, and the smoothed path of
+// a pose lag already has the headings that matching gives the live poses (with both, benning's
+// buildings came out worse: docs/localize.md, Scan matching).
+localize::ScanMatchConfig matcher_config(const MapperConfig& config) noexcept {
+  localize::ScanMatchConfig matching = config.scan_matching;
+  matching.enabled = matching.enabled && config.pose_source == PoseSource::kLocalizer &&
+                     !(config.localizer.map_pose_lag_s > 0.0);
+  return matching;
+}
+
 map::PlaneRegistryConfig registry_config(const MapperConfig& config) noexcept {
   map::PlaneRegistryConfig registry = config.registry;
   registry.max_detected_planes = config.planes.max_planes;
@@ -96,6 +107,9 @@ std::size_t scan_queue_slots(const MapperConfig& config) noexcept {
 
 std::string validate(const MapperConfig& config) {
   if (std::string problem = localize::validate(config.localizer); !problem.empty()) {
+    return problem;
+  }
+  if (std::string problem = localize::validate(config.scan_matching); !problem.empty()) {
     return problem;
   }
   if (std::string problem = map::validate(config.window); !problem.empty()) {
@@ -146,6 +160,10 @@ void Mapper::init(Arena& arena, const MapperConfig& config) {
   BLOCKMAP_CHECK_MSG(problem.empty(), "an invalid mapper configuration reached init()");
   config_ = config;
   localizer_.init(arena, config.localizer);
+  matcher_.init(arena, matcher_config(config));
+  for (std::size_t laser = 0; laser < config.laser_count; ++laser) {
+    matches_scans_[laser] = matcher_.enabled() && is_level_laser(config, laser);
+  }
   for (std::size_t i = 0; i < config.laser_count; ++i) {
     projectors_[i] = map::ScanProjector(config.laser_mounts[i], config.projection);
   }
@@ -180,6 +198,7 @@ void Mapper::init(Arena& arena, const MapperConfig& config) {
 std::size_t Mapper::arena_bytes(const MapperConfig& config) noexcept {
   constexpr std::size_t kSlack = 64;
   return localize::Localizer::arena_bytes(config.localizer) +
+         localize::ScanMatcher::arena_bytes(matcher_config(config)) +
          map::VoxelWindow::arena_bytes(config.window) +
          planes::PlaneDetector::arena_budget_bytes(detector_config(config)) +
          map::PlaneRegistry::arena_bytes(registry_config(config)) +
@@ -441,10 +460,13 @@ void Mapper::project(const QueuedScan& queued, std::span<const std::uint16_t> co
     first.z_m = held_z_m_;
     last.z_m = held_z_m_;
   }
+  const std::size_t count = projectors_[queued.laser].project(scan, first, last, points_);
+  if (matcher_.enabled()) {
+    correct_by_scan_matching(queued.laser, first, last, points_.first(count));
+  }
   // The window follows the robot: tiles it leaves behind go to the registry as they leave.
   window_.recentre(Eigen::Vector2d(first.x_m, first.y_m), tile_leaving_);
   record_laser_position(queued.laser, first);
-  const std::size_t count = projectors_[queued.laser].project(scan, first, last, points_);
   window_.add_points(points_.first(count));
   if (carves_free_space_[queued.laser]) {
     carve_free_space(queued.laser, first, points_.first(count));
@@ -455,6 +477,50 @@ void Mapper::project(const QueuedScan& queued, std::span<const std::uint16_t> co
   counters_.points += count;
   ++counters_.scans_projected;
   last_scan_ns_ = std::max(last_scan_ns_, last_ns);
+}
+
+void Mapper::correct_by_scan_matching(std::size_t laser, localize::Pose3& first,
+                                      localize::Pose3& last,
+                                      std::span<Eigen::Vector3f> points_m) noexcept {
+  localize::PlanarCorrection correction;
+  localize::Pose3 drawn;
+  localize::Pose2 odometry;
+  if (matches_scans_[laser] && localizer_.map_pose_at(first.stamp_ns, drawn, &odometry)) {
+    // The filter's poses jumped to its estimate (its start, a recovery) since the last
+    // matched scan: the grid drawn with the poses before is of another frame. By the snap's
+    // stamp, not by when the localizer made it: it runs ahead of the scans by however the
+    // messages came.
+    if (localizer_.map_pose_snapped_between(last_matched_scan_ns_, first.stamp_ns)) {
+      matcher_.reset();
+    }
+    last_matched_scan_ns_ = first.stamp_ns;
+    correction = matcher_.add_scan({first.stamp_ns, first.x_m, first.y_m, first.yaw_rad}, odometry,
+                                   first.z_m, points_m);
+    corrections_[correction_next_] = {first.stamp_ns, correction};
+    correction_next_ = (correction_next_ + 1) % corrections_.size();
+    correction_count_ = std::min(correction_count_ + 1, corrections_.size());
+  } else {
+    // Another laser's scan takes the correction of the last matched scan before it. By stamp:
+    // a later scan of the matched laser may have been drawn first (it ended sooner).
+    TimestampNs best_ns = 0;
+    bool found = false;
+    for (std::size_t i = 0; i < correction_count_; ++i) {
+      const StampedCorrection& kept = corrections_[i];
+      if (kept.stamp_ns <= first.stamp_ns && (!found || kept.stamp_ns > best_ns)) {
+        best_ns = kept.stamp_ns;
+        correction = kept.correction;
+        found = true;
+      }
+    }
+  }
+  correction.apply(points_m);
+  for (localize::Pose3* pose : {&first, &last}) {
+    const localize::Pose2 moved =
+        correction.apply(localize::Pose2{pose->stamp_ns, pose->x_m, pose->y_m, pose->yaw_rad});
+    pose->x_m = moved.x_m;
+    pose->y_m = moved.y_m;
+    pose->yaw_rad = moved.yaw_rad;
+  }
 }
 
 void Mapper::carve_free_space(std::size_t laser, const localize::Pose3& pose,

@@ -11,6 +11,7 @@
 // centimetres on the paper's robot, against 2 m of GPS error).
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -91,11 +92,18 @@ class Localizer {
   // The pose to draw a scan with: smooth from one base sample to the next (odometry between
   // fixes), near the filter's estimate over seconds, with the base's attitude of that sample.
   // False before the filter starts and outside the last map_pose_capacity base samples.
-  bool map_pose_at(TimestampNs stamp_ns, Pose3& out) const noexcept;
+  // `odometry`, when given, is the odometry's own pose at the stamp: the same dead reckoning
+  // from the filter's first estimate on, never drawn toward the filter (what the scans of a
+  // scan matcher move by between two matches).
+  bool map_pose_at(TimestampNs stamp_ns, Pose3& out, Pose2* odometry = nullptr) const noexcept;
   // At the end of the input: the lagged map pose goes on until it reaches until_ns or the
   // last base sample (the smoothed path is as good as it will get). A step at a time, as the
   // last scans need it: the map poses' ring holds map_pose_capacity of them.
   void flush_map_pose(TimestampNs until_ns) noexcept;
+  // Whether the map pose jumped to the estimate (a snap) at a stamp in (after_ns, until_ns]:
+  // by the stamps of the last few snaps, however far the localizer has run ahead of the scans.
+  [[nodiscard]] bool map_pose_snapped_between(TimestampNs after_ns,
+                                              TimestampNs until_ns) const noexcept;
   // The newest time map_pose_at() answers for: the last base sample, or with a lag, the last
   // one the lagged map pose has reached. False before there is any.
   bool map_pose_horizon(TimestampNs& out) const noexcept;
@@ -160,7 +168,12 @@ class Localizer {
   double pending_yaw_rad_ = 0.0;
   double distance_scale_ = 1.0;
   double yaw_rate_bias_radps_ = 0.0;
-  std::span<Pose3> map_poses_;  // a ring, oldest at map_first_
+  std::span<Pose3> map_poses_;                // a ring, oldest at map_first_
+  Pose2 odometry_pose_;                       // dead reckoning, never pulled
+  std::span<Pose2> odometry_poses_;           // with each of map_poses_, at the same index
+  std::array<TimestampNs, 8> snap_stamps_{};  // the last snaps' stamps (a ring)
+  std::size_t snap_next_ = 0;
+  std::size_t snap_count_ = 0;
   std::size_t map_first_ = 0;
   std::size_t map_count_ = 0;
   // With a lag: the base samples not yet drawn (a ring, oldest at lagged_first_), and when

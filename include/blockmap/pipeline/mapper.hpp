@@ -26,6 +26,7 @@
 #include "blockmap/buildings/building_fitter.hpp"
 #include "blockmap/core/arena.hpp"
 #include "blockmap/localize/localizer.hpp"
+#include "blockmap/localize/scan_matcher.hpp"
 #include "blockmap/map/free_space_grid.hpp"
 #include "blockmap/map/plane_registry.hpp"
 #include "blockmap/map/scan_projector.hpp"
@@ -82,6 +83,10 @@ enum class PoseSource : std::uint8_t {
 struct MapperConfig {
   localize::LocalizerConfig localizer = mapper_localizer_config();
   PoseSource pose_source = PoseSource::kLocalizer;
+  // With the localizer's poses: each level laser's scan matched against the grid of what the
+  // scans before it hit, and every scan drawn with the corrected pose (localize::ScanMatcher,
+  // docs/localize.md).
+  localize::ScanMatchConfig scan_matching;
   std::size_t max_external_poses = 1024;  // kExternal: the newest poses kept to interpolate
 
   std::array<map::SensorMount, kMaxLasers> laser_mounts{};
@@ -234,6 +239,7 @@ class Mapper {
   void restore_planes(std::span<const map::SavedPlane> planes) noexcept;
   [[nodiscard]] const planes::PlaneDetector& detector() const noexcept { return detector_; }
   [[nodiscard]] const localize::Localizer& localizer() const noexcept { return localizer_; }
+  [[nodiscard]] const localize::ScanMatcher& scan_matcher() const noexcept { return matcher_; }
   [[nodiscard]] const map::ProjectionCounters& projection(std::size_t laser) const noexcept {
     return projectors_[laser].counters();
   }
@@ -277,6 +283,10 @@ class Mapper {
   void extract(TimestampNs stamp_ns) noexcept;
   void refit_buildings() noexcept;
   void fit_buildings_to_map() noexcept;
+  // With scan matching: a level laser's scan corrects the pose (matcher_), and every scan's
+  // points and poses are moved by the correction.
+  void correct_by_scan_matching(std::size_t laser, localize::Pose3& first, localize::Pose3& last,
+                                std::span<Eigen::Vector3f> points_m) noexcept;
   // A level laser's beams carve the free-space grid, from its position at `pose`.
   void carve_free_space(std::size_t laser, const localize::Pose3& pose,
                         std::span<const Eigen::Vector3f> points_m) noexcept;
@@ -295,6 +305,17 @@ class Mapper {
   MapperConfig config_;
   TileLeaving tile_leaving_{*this};
   localize::Localizer localizer_;
+  localize::ScanMatcher matcher_;
+  std::array<bool, kMaxLasers> matches_scans_{};  // level lasers, with the localizer's poses
+  // The last matched scans' corrections, by stamp, for the other lasers' scans.
+  struct StampedCorrection {
+    TimestampNs stamp_ns = 0;
+    localize::PlanarCorrection correction;
+  };
+  std::array<StampedCorrection, 16> corrections_{};
+  std::size_t correction_next_ = 0;
+  std::size_t correction_count_ = 0;
+  TimestampNs last_matched_scan_ns_ = 0;
   std::array<map::ScanProjector, kMaxLasers> projectors_{
       map::ScanProjector({}, {}), map::ScanProjector({}, {}), map::ScanProjector({}, {}),
       map::ScanProjector({}, {})};
