@@ -151,8 +151,8 @@ std::size_t ScanMatcher::arena_bytes(const ScanMatchConfig& config) noexcept {
     return 0;
   }
   constexpr std::size_t kSlack = 64;
-  std::size_t bytes =
-      config.levels * sizeof(Level) + 2 * config.max_points * sizeof(Eigen::Vector2d);
+  std::size_t bytes = std::size_t{config.levels} * sizeof(Level) +
+                      2 * std::size_t{config.max_points} * sizeof(Eigen::Vector2d);
   for (std::uint32_t l = 0; l < config.levels; ++l) {
     const std::size_t across = config.cells_across >> l;
     bytes += across * across + kSlack;
@@ -490,7 +490,7 @@ Eigen::Vector3d ScanMatcher::matched_pose(const Pose2& predicted, const Pose2& r
                                           std::span<const Eigen::Vector3f> points_m) noexcept {
   const bool had_map = placed_;
   recentre(Eigen::Vector2d(predicted.x_m, predicted.y_m));
-  const Eigen::Vector3d prior(predicted.x_m, predicted.y_m, predicted.yaw_rad);
+  Eigen::Vector3d prior(predicted.x_m, predicted.y_m, predicted.yaw_rad);
   scan_count_ = select_points(raw_pose, robot_z_m, points_m);
   if (scan_count_ < config_.min_points) {
     ++counters_.few_points;
