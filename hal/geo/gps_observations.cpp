@@ -71,8 +71,10 @@ TimestampNs FixConverter::on_receive_clock(const msg::GpsFix& fix) {
   ++delay_count_;
   const std::size_t kept = delay_count_ < kDelayWindow ? delay_count_ : kDelayWindow;
   best_delay_ns_ = delays_ns_[0];
+  worst_delay_ns_ = delays_ns_[0];
   for (std::size_t i = 1; i < kept; ++i) {
     best_delay_ns_ = std::min(best_delay_ns_, delays_ns_[i]);
+    worst_delay_ns_ = std::max(worst_delay_ns_, delays_ns_[i]);
   }
   return on_pps_edge(utc_ns, utc_ns + best_delay_ns_, received_ns);
 }

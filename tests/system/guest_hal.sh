@@ -40,13 +40,28 @@ lasers = ["usb:19a2:5001:18340123"]
 reconnect_first_s = 0.1
 reconnect_max_s = 0.4
 CONFIG
+# Each step waits for the daemon to report the one before, not for a fixed time: under an
+# emulated CPU shared with other test trees the daemon's start-up alone can take seconds, and an
+# unplug before the first open would test nothing.
+wait_for() {  # wait_for PATTERN SECONDS: until the daemon's log has a line matching PATTERN
+  tenths=0
+  until grep -qE "$1" /tmp/tim_run.log; do
+    tenths=$((tenths + 1))
+    [ $tenths -le $(($2 * 10)) ] || { echo "guest_hal: no \"$1\" from the daemon in $2 s"; return 1; }
+    sleep 0.1
+  done
+}
 blockmap run --config /tmp/tim.toml --out /tmp/tim_out 2> /tmp/tim_run.log &
 daemon=$!
-sleep 4
+fail_daemon() { kill -INT $daemon; wait $daemon; cat /tmp/tim_run.log; stop_gadget; exit 1; }
+wait_for "^device laser_horizontal: up" 60 || fail_daemon
+sleep 2
 echo "" > $gadget/UDC
+wait_for "^device laser_horizontal: lost" 30 || fail_daemon
 sleep 1
 echo dummy_udc.0 > $gadget/UDC
-sleep 4
+wait_for "^device laser_horizontal: up \(opened 2 times\)" 60 || fail_daemon
+sleep 2
 kill -INT $daemon
 wait $daemon || { cat /tmp/tim_run.log; stop_gadget; exit 1; }
 grep -E "^device laser" /tmp/tim_run.log

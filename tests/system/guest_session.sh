@@ -23,8 +23,12 @@ reconnect_first_s = 0.05
 reconnect_max_s = 0.2
 snapshot_every_s = 5
 # The guest's ARM is emulated, several times slower than a robot's: an extraction can hold the
-# pipeline for over the default queue's 0.4 s of scans. 1.7 s of them, so none is refused.
-scan_queue_messages = 128
+# pipeline for over the default queue's 0.4 s of scans, and its GPS reader, held up for up to a
+# second, stamps fixes back that far, which the merge then waits for (the fixes' backdating).
+# 3.4 s of scans and 5 s of the base's 100 Hz, so none is refused (one run with the machine's
+# both cores busy beside the guest refused 65 of the base's with the default 2.6 s).
+scan_queue_messages = 256
+base_queue_messages = 512
 # Both maps are drawn 12 s late, with the particle filter's smoothed path: in the loop's first
 # minute its heading is still settling, and drawn live two runs of it differ by up to 20 deg.
 [mapper]

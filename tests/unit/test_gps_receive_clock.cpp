@@ -40,6 +40,9 @@ TEST(GpsReceiveClock, TheLeastDelayedFixSetsTheClockAndLaterFixesKeepIt) {
   // From the third fix on, the clock is the 80 ms one: the last fix at its UTC + 80 ms.
   EXPECT_EQ(converter.receive_delay_ns(), boot_offset_ns + 80 * kMs);
   EXPECT_EQ(observation.stamp_ns, boot_offset_ns + (43'200'000 + 5 * 250) * kMs + 80 * kMs);
+  // The 200 ms fix landed 120 ms before its receipt: what the merge must wait for.
+  EXPECT_EQ(converter.backdating_ns(), 120 * kMs);
+  EXPECT_EQ(FixConverter(FixTime::kUtc).backdating_ns(), 0);
 }
 
 TEST(GpsReceiveClock, MidnightKeepsTheClockAndAJumpStartsItOver) {

@@ -50,6 +50,13 @@ class FixConverter {
   [[nodiscard]] std::size_t without_position() const noexcept { return without_position_; }
   // kReceiveClock: the delay from UTC to the receive clock in use (receive clock - UTC), ns.
   [[nodiscard]] TimestampNs receive_delay_ns() const noexcept { return best_delay_ns_; }
+  // kReceiveClock: how far before its receipt a fix may be stamped, the spread of the window's
+  // delays (the most delayed less the least; 0 on kUtc). A merge of the devices' streams by
+  // their receive stamps must hold the others back by this much: a fix read late lands that
+  // far back, behind messages already handed on (the mapper would drop it as late).
+  [[nodiscard]] TimestampNs backdating_ns() const noexcept {
+    return worst_delay_ns_ - best_delay_ns_;
+  }
   // kReceiveClock: how often the delays started over (the receiver's clock jumped).
   [[nodiscard]] std::size_t clock_restarts() const noexcept { return clock_restarts_; }
 
@@ -77,6 +84,7 @@ class FixConverter {
   std::array<TimestampNs, kDelayWindow> delays_ns_{};
   std::size_t delay_count_ = 0;  // delays seen since the last restart
   TimestampNs best_delay_ns_ = 0;
+  TimestampNs worst_delay_ns_ = 0;
   std::size_t clock_restarts_ = 0;
   std::array<TimestampNs, kPpsEdges> pps_edges_ns_{};
   std::size_t pps_count_ = 0;
