@@ -120,7 +120,8 @@ void MappingSession::report(std::ostream& err, double data_s) const {
   std::snprintf(
       text, sizeof text,
       "mapped %.1f s of data in %.2f s (%.0fx real time): %llu scans projected, %llu points "
-      "(%llu outside the window, %llu with no room); %llu extractions (%llu on kept samples; "
+      "(%llu outside the window, %llu with no room; %llu far ground returns dropped); %llu "
+      "extractions (%llu on kept samples; "
       "%llu of %llu sections as before, %llu of them barren still, %llu settled); planes: %llu "
       "added, %llu "
       "changes, %llu final; window peak %zu samples of %zu; %llu updates, %llu bytes of binary "
@@ -129,6 +130,7 @@ void MappingSession::report(std::ostream& err, double data_s) const {
       static_cast<unsigned long long>(c.scans_projected), static_cast<unsigned long long>(c.points),
       static_cast<unsigned long long>(w.points_outside),
       static_cast<unsigned long long>(w.points_dropped_full),
+      static_cast<unsigned long long>(mapper_.far_ground_returns()),
       static_cast<unsigned long long>(c.extractions),
       static_cast<unsigned long long>(c.incremental_extractions),
       static_cast<unsigned long long>(c.sections_replayed),

@@ -36,6 +36,10 @@ pipeline::MapperConfig parse_window_config(std::string_view text, std::string_vi
     if (!(c.projection.max_range_m > c.projection.min_range_m)) {
       t.fail("max_range_m", "must be more than min_range_m");
     }
+    c.projection.far_ground_range_m = t.non_negative(
+        "far_ground_range_m", t.number_or("far_ground_range_m", c.projection.far_ground_range_m));
+    c.projection.ground_band_m =
+        t.non_negative("ground_band_m", t.number_or("ground_band_m", c.projection.ground_band_m));
     t.finish();
   }
   if (auto table = root.table("free_space")) {

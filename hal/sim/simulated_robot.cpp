@@ -41,6 +41,11 @@ pipeline::MapperConfig mapper_config_for(const RobotSpec& robot) {
   constexpr std::size_t kLms2xxMaxBeams = 401;
   config.max_beams = kLms2xxMaxBeams;
   config.scans_per_s = 0.0;
+  // The ground far from a laser is dropped (ScanProjectorConfig says why): the robot's wheels
+  // say where the ground is.
+  constexpr double kFarGroundRangeM = 8.0;
+  config.projection.far_ground_range_m = kFarGroundRangeM;
+  config.projection.axle_height_m = robot.base.wheel_radius_m;
   for (std::size_t i = 0; i < config.laser_count; ++i) {
     const LaserSpec& laser = robot.lasers[i];
     const Mount& mount = laser.mount;

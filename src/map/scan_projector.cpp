@@ -98,10 +98,6 @@ std::size_t ScanProjector::project(const msg::LaserScan& scan, const localize::P
       ++counters_.beyond_max_range;
       continue;
     }
-    if (count == out.size()) {
-      ++counters_.output_full;
-      continue;
-    }
     const double f =
         span_ns > 0.0
             ? std::clamp(static_cast<double>(beam_stamp_ns(scan, i) - first.stamp_ns) / span_ns,
@@ -111,10 +107,41 @@ std::size_t ScanProjector::project(const msg::LaserScan& scan, const localize::P
     const Eigen::Vector3d origin = origin_first + f * (origin_last - origin_first);
     const Eigen::Vector3d direction =
         (rotation_first * beam + f * (rotation_last - rotation_first) * beam).normalized();
+    if (count == out.size()) {
+      ++counters_.output_full;
+      continue;
+    }
     out[count++] = (origin + range_m * direction).cast<float>();
   }
   counters_.points += count;
   return count;
+}
+
+std::size_t ScanProjector::drop_far_ground(const localize::Pose3& pose,
+                                           std::span<Eigen::Vector3f> points_m) noexcept {
+  if (!(config_.far_ground_range_m > 0.0)) {
+    return points_m.size();
+  }
+  // The ground under the robot lies the axle's height below its origin along the vertical (the
+  // RMP pitches about its axle). A scan lasts 13 ms: the laser's origin at its first beam
+  // stands for all of them, a centimetre off at most.
+  const auto ground_z_m = static_cast<float>(pose.z_m - config_.axle_height_m);
+  const auto band_m = static_cast<float>(config_.ground_band_m);
+  const Eigen::Vector2f laser_xy_m =
+      (position_of(pose) + robot_rotation(pose) * mount_.position_m).head<2>().cast<float>();
+  const auto far_sq_m2 =
+      static_cast<float>(config_.far_ground_range_m * config_.far_ground_range_m);
+  std::size_t kept = 0;
+  for (const Eigen::Vector3f& point_m : points_m) {
+    const bool far_ground = point_m.z() - ground_z_m < band_m &&
+                            (point_m.head<2>() - laser_xy_m).squaredNorm() > far_sq_m2;
+    if (far_ground) {
+      ++counters_.far_ground;
+    } else {
+      points_m[kept++] = point_m;
+    }
+  }
+  return kept;
 }
 
 }  // namespace blockmap::map

@@ -152,6 +152,10 @@ std::string validate(const MapperConfig& config) {
       !(config.projection.max_range_m > config.projection.min_range_m)) {
     return "mapper: projection ranges must satisfy 0 <= min_range_m < max_range_m";
   }
+  if (!(config.projection.far_ground_range_m >= 0.0) || !(config.projection.ground_band_m >= 0.0) ||
+      !std::isfinite(config.projection.axle_height_m)) {
+    return "mapper: far_ground_range_m and ground_band_m must not be negative";
+  }
   return {};
 }
 
@@ -467,13 +471,15 @@ void Mapper::project(const QueuedScan& queued, std::span<const std::uint16_t> co
   // The window follows the robot: tiles it leaves behind go to the registry as they leave.
   window_.recentre(Eigen::Vector2d(first.x_m, first.y_m), tile_leaving_);
   record_laser_position(queued.laser, first);
-  window_.add_points(points_.first(count));
   if (carves_free_space_[queued.laser]) {
     carve_free_space(queued.laser, first, points_.first(count));
   }
   if (point_sink_ != nullptr) {
     point_sink_->on_points(points_.first(count));
   }
+  // The map leaves out the ground far from the laser (ScanProjectorConfig says why).
+  const std::size_t mapped = projectors_[queued.laser].drop_far_ground(first, points_.first(count));
+  window_.add_points(points_.first(mapped));
   counters_.points += count;
   ++counters_.scans_projected;
   last_scan_ns_ = std::max(last_scan_ns_, last_ns);

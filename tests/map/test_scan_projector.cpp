@@ -132,6 +132,51 @@ TEST(ScanProjector, EveryDroppedBeamIsCountedByWhy) {
   expect_near(out[0], Eigen::Vector3d(10.0 * std::cos(angle), 10.0 * std::sin(angle), 0.0), 1e-5);
 }
 
+TEST(ScanProjector, TheGroundFarFromTheLaserIsDroppedFromTheMapAndCounted) {
+  // The RMP's level laser, 0.55 m above an axle 0.24 m above the ground, the robot nose down by
+  // 2 deg: the beams at +-30 deg point down by cos(30 deg) * 2 deg and meet the ground 26 m
+  // away, farther than 8 m; the beams to the side stay level (0.79 m up) and meet walls 10 m to
+  // the right and 6 m to the left.
+  ScanProjectorConfig config;
+  config.far_ground_range_m = 8.0;
+  config.ground_band_m = 0.4;
+  config.axle_height_m = 0.24;
+  const SensorMount mount{Eigen::Vector3d(0.0, 0.0, 0.55), 0.0, 0.0, 0.0};
+  ScanProjector projector(mount, config);
+  const double pitch = 2.0 * kDeg;
+  const double laser_height_m = 0.24 + 0.55 * std::cos(pitch);  // it tilts about the axle
+  msg::LaserScan scan =
+      scan_of(4, -90.0 * kDeg, 60.0 * kDeg,
+              static_cast<float>(laser_height_m / (std::cos(30.0 * kDeg) * std::sin(pitch))));
+  scan.ranges_m[0] = 10.0f;  // -90 deg, right
+  scan.ranges_m[3] = 6.0f;   // +90 deg, left
+  const localize::Pose3 robot = pose(scan.header.stamp_ns, 5.0, 0.0, 0.24, 0.0, pitch, 0.0);
+  std::array<Eigen::Vector3f, 4> out{};
+  ASSERT_EQ(projector.project(scan, robot, robot, out), 4u);  // every point, for the matcher
+  EXPECT_NEAR(out[1].z(), 0.0f, 1e-4);                        // on the ground
+  ASSERT_EQ(projector.drop_far_ground(robot, out), 2u);
+  EXPECT_EQ(projector.counters().far_ground, 2u);
+  EXPECT_NEAR(out[0].y(), -10.0f, 1e-4);  // in their order
+  EXPECT_NEAR(out[1].y(), 6.0f, 1e-4);
+
+  // The ground within 8 m is kept: at 10 deg nose down the forward beam meets it 4.4 m ahead.
+  const double steep = 10.0 * kDeg;
+  const double steep_height_m = 0.24 + 0.55 * std::cos(steep);
+  const msg::LaserScan near =
+      scan_of(1, 0.0, 0.0, static_cast<float>(steep_height_m / std::sin(steep)));
+  const localize::Pose3 nose_down = pose(near.header.stamp_ns, 5.0, 0.0, 0.24, 0.0, steep, 0.0);
+  ASSERT_EQ(projector.project(near, nose_down, nose_down, out), 1u);
+  EXPECT_NEAR(out[0].z(), 0.0f, 1e-4);
+  EXPECT_EQ(projector.drop_far_ground(nose_down, std::span(out).first(1)), 1u);
+  EXPECT_EQ(projector.counters().far_ground, 2u);
+
+  // Off (the default, which knows no ground): every point stays.
+  ScanProjector keeps_all(mount, ScanProjectorConfig{});
+  ASSERT_EQ(keeps_all.project(scan, robot, robot, out), 4u);
+  EXPECT_EQ(keeps_all.drop_far_ground(robot, out), 4u);
+  EXPECT_EQ(keeps_all.counters().far_ground, 0u);
+}
+
 TEST(ScanProjector, ANewScanGeometryIsTakenUpAtOnce) {
   // A scanner reconfigured between scans (another field or resolution): the beam table
   // follows the scan, not the first one seen.

@@ -7,7 +7,8 @@
 // A scan takes time (13 ms for an LMS2xx turn), and the robot moves and turns meanwhile: the
 // pose is interpolated between the poses at the first and the last beam, beam by beam, as the
 // simulator moves its beams. Beams without a return, flagged by the device, or outside the
-// configured range band are dropped and counted; nothing here allocates.
+// configured range band are dropped and counted; so are, for the map, returns from the ground
+// far from the laser (ScanProjectorConfig::far_ground_range_m). Nothing here allocates.
 #pragma once
 
 #include <array>
@@ -37,6 +38,18 @@ struct ScanProjectorConfig {
   // carry too much of the pose's angular error (0.5 deg is 0.35 m at 40 m).
   double min_range_m = 0.3;
   double max_range_m = 40.0;
+  // Ground returns farther than this from the laser (horizontally) are dropped; 0 keeps them.
+  // A level laser on the RMP, which rocks by degrees as it accelerates, sweeps the ground in
+  // grazing arcs out to its range: at 2 deg nose down the beams meet the ground 20 m ahead. Such
+  // arcs put a few points in each of many samples all over the window, never make a plane, and
+  // on benning were half of the window's samples (docs/mapper.md, Speed); the ground near the
+  // robot is dense and keeps its plane. Off here, since it needs the robot's geometry:
+  // hal::sim::mapper_config_for sets it with the robot file's wheel radius.
+  double far_ground_range_m = 0.0;
+  // A return is ground when it lies less than this above the ground under the robot...
+  double ground_band_m = 0.4;
+  // ...which is this far below the robot frame's origin (the wheel axle: the wheel radius).
+  double axle_height_m = 0.0;
 };
 
 struct ProjectionCounters {
@@ -47,6 +60,7 @@ struct ProjectionCounters {
   std::uint64_t below_min_range = 0;   // valid, but nearer than min_range_m
   std::uint64_t beyond_max_range = 0;  // valid, but farther than max_range_m
   std::uint64_t non_finite = 0;        // a NaN or infinite range marked valid
+  std::uint64_t far_ground = 0;        // the ground, farther than far_ground_range_m
   std::uint64_t output_full = 0;       // beams beyond the caller's output span
 };
 
@@ -65,6 +79,14 @@ class ScanProjector {
   // same pose twice for a robot standing still or a scan without beam timing).
   std::size_t project(const msg::LaserScan& scan, const localize::Pose3& first,
                       const localize::Pose3& last, std::span<Eigen::Vector3f> out) noexcept;
+
+  // Of the points of a scan drawn with the robot at `pose` (its first beam's), drops the ground
+  // farther than far_ground_range_m from the laser, keeping the others' order in the front of
+  // `points_m`, and returns how many are kept. The scan matcher and the free-space raster take
+  // every point first: a far ground return is still a beam that saw through, and the bottom of
+  // a far wall that the matcher can use.
+  std::size_t drop_far_ground(const localize::Pose3& pose,
+                              std::span<Eigen::Vector3f> points_m) noexcept;
 
   // The laser's scan plane in the local frame at `pose`: its origin and unit normal.
   void scan_plane(const localize::Pose3& pose, Eigen::Vector3d& origin_m,

@@ -243,6 +243,14 @@ class Mapper {
   [[nodiscard]] const map::ProjectionCounters& projection(std::size_t laser) const noexcept {
     return projectors_[laser].counters();
   }
+  // The ground returns far from the lasers, dropped (ScanProjectorConfig::far_ground_range_m).
+  [[nodiscard]] std::uint64_t far_ground_returns() const noexcept {
+    std::uint64_t sum = 0;
+    for (std::size_t laser = 0; laser < config_.laser_count; ++laser) {
+      sum += projectors_[laser].counters().far_ground;
+    }
+    return sum;
+  }
 
  private:
   enum class Kind : std::uint8_t { kBase, kFix, kPose };
