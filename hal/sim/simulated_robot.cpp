@@ -42,9 +42,7 @@ pipeline::MapperConfig mapper_config_for(const RobotSpec& robot) {
   config.max_beams = kLms2xxMaxBeams;
   config.scans_per_s = 0.0;
   // The robot's wheels say where the ground is, for `[projection] far_ground_range_m`
-  // (ScanProjectorConfig says why). Off by default for now: with it on, the daemon's fault test
-  // (16 s of usc_block under injected faults) maps fewer walls of 5,000 points, which is not
-  // understood yet (docs/mapper.md, Speed, 2026-12-02).
+  // (ScanProjectorConfig says why; off by default for now, docs/mapper.md, Speed, 2026-12-02).
   config.projection.axle_height_m = robot.base.wheel_radius_m;
   for (std::size_t i = 0; i < config.laser_count; ++i) {
     const LaserSpec& laser = robot.lasers[i];

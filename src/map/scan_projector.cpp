@@ -98,6 +98,10 @@ std::size_t ScanProjector::project(const msg::LaserScan& scan, const localize::P
       ++counters_.beyond_max_range;
       continue;
     }
+    if (count == out.size()) {
+      ++counters_.output_full;
+      continue;
+    }
     const double f =
         span_ns > 0.0
             ? std::clamp(static_cast<double>(beam_stamp_ns(scan, i) - first.stamp_ns) / span_ns,
@@ -107,10 +111,6 @@ std::size_t ScanProjector::project(const msg::LaserScan& scan, const localize::P
     const Eigen::Vector3d origin = origin_first + f * (origin_last - origin_first);
     const Eigen::Vector3d direction =
         (rotation_first * beam + f * (rotation_last - rotation_first) * beam).normalized();
-    if (count == out.size()) {
-      ++counters_.output_full;
-      continue;
-    }
     out[count++] = (origin + range_m * direction).cast<float>();
   }
   counters_.points += count;

@@ -154,7 +154,8 @@ std::string validate(const MapperConfig& config) {
   }
   if (!(config.projection.far_ground_range_m >= 0.0) || !(config.projection.ground_band_m >= 0.0) ||
       !std::isfinite(config.projection.axle_height_m)) {
-    return "mapper: far_ground_range_m and ground_band_m must not be negative";
+    return "mapper: far_ground_range_m and ground_band_m must not be negative, axle_height_m "
+           "finite";
   }
   return {};
 }

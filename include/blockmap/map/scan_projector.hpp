@@ -38,7 +38,8 @@ struct ScanProjectorConfig {
   // carry too much of the pose's angular error (0.5 deg is 0.35 m at 40 m).
   double min_range_m = 0.3;
   double max_range_m = 40.0;
-  // Ground returns farther than this from the laser (horizontally) are dropped; 0 keeps them.
+  // Ground returns farther than this from the laser (horizontally) stay out of the map
+  // (drop_far_ground); 0 keeps them.
   // A level laser on the RMP, which rocks by degrees as it accelerates, sweeps the ground in
   // grazing arcs out to its range: at 2 deg nose down the beams meet the ground 23 m ahead. Such
   // arcs put a few points in each of many samples all over the window, never make a plane, and
