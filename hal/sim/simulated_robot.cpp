@@ -41,9 +41,12 @@ pipeline::MapperConfig mapper_config_for(const RobotSpec& robot) {
   constexpr std::size_t kLms2xxMaxBeams = 401;
   config.max_beams = kLms2xxMaxBeams;
   config.scans_per_s = 0.0;
-  // The robot's wheels say where the ground is, for `[projection] far_ground_range_m`
-  // (ScanProjectorConfig says why; off by default for now, docs/mapper.md, Speed, 2026-12-02).
+  // The robot's wheels say where the ground is, so the ground far from the lasers can stay out
+  // of the window (ScanProjectorConfig says why; docs/mapper.md, Speed, 2026-12-02): 8 m keeps
+  // the dense ground near the robot, which makes the ground's plane, and halves benning's
+  // window. `[projection] far_ground_range_m = 0` keeps every ground return.
   config.projection.axle_height_m = robot.base.wheel_radius_m;
+  config.projection.far_ground_range_m = 8.0;
   for (std::size_t i = 0; i < config.laser_count; ++i) {
     const LaserSpec& laser = robot.lasers[i];
     const Mount& mount = laser.mount;

@@ -31,8 +31,18 @@ constexpr double kDurationS = 60.0;
 constexpr double kDeterminismDurationS = 8.0;
 #else
 constexpr double kDurationS = 0.0;  // the whole path
-constexpr double kDeterminismDurationS = 15.0;
+constexpr double kDeterminismDurationS = 8.0;
 #endif
+// The determinism tests' window: 5 tiles of 4 m (8-12 m beyond the robot), so that tiles
+// with walls in them leave it within their seconds (with the far ground out of the map, no
+// tile leaves the default 7 tiles of 8 m in the quick worlds' 8 s).
+map::VoxelWindowConfig determinism_window() {
+  map::VoxelWindowConfig window;
+  window.tile_size_m = 4.0;
+  window.tiles_across = 5;
+  return window;
+}
+const map::VoxelWindowConfig kDeterminismWindow = determinism_window();
 
 // Appends an update as the binary plane stream encodes it; the bytes written.
 std::size_t append_encoded(std::vector<std::uint8_t>& stream, const PlaneUpdate& update) {
@@ -63,7 +73,8 @@ struct MapperRun {
 MapperRun map_world(const std::string& world, PoseSource poses, double duration_s = kDurationS,
                     bool incremental_extraction = true, double pose_lag_s = 0.0,
                     bool sections_wait = true, std::uint64_t seed = 3,
-                    const localize::ScanMatchConfig* scan_matching = nullptr) {
+                    const localize::ScanMatchConfig* scan_matching = nullptr,
+                    const map::VoxelWindowConfig* window = nullptr) {
   const hal::sim::RobotSpec robot = hal::sim::load_robot("paper_rmp");
   hal::sim::SimOptions options;
   options.seed = seed;
@@ -77,6 +88,9 @@ MapperRun map_world(const std::string& world, PoseSource poses, double duration_
   config.localizer.map_pose_lag_s = pose_lag_s;
   if (scan_matching != nullptr) {
     config.scan_matching = *scan_matching;
+  }
+  if (window != nullptr) {
+    config.window = *window;
   }
   if (!sections_wait) {
     // Every section searched again whenever anything in it changed.
@@ -227,18 +241,20 @@ TEST(MapperSim, UscBlockWithTruePosesFindsTheFaces) {
 // (barren_section_growth and settled_section_growth 0) the stream is also the same, byte for byte,
 // as with every window detected afresh (incremental_extraction off).
 TEST(MapperSim, TheSameRunGivesTheSameStreamWithOrWithoutKeptShapes) {
-  const MapperRun a = map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS);
-  const MapperRun b = map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS);
+  const MapperRun a = map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS, true,
+                                0.0, true, 3, nullptr, &kDeterminismWindow);
+  const MapperRun b = map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS, true,
+                                0.0, true, 3, nullptr, &kDeterminismWindow);
   ASSERT_EQ(a.stream.size(), b.stream.size());
   EXPECT_GT(a.stream.size(), 0u);
   EXPECT_TRUE(a.stream == b.stream) << "the plane stream's bytes differ";
   EXPECT_GT(a.counters.sections_still_barren, 0u) << "the default lets barren sections wait";
   EXPECT_GT(a.counters.sections_settled, 0u) << "... and sections that gave planes";
 
-  const MapperRun exact =
-      map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS, true, 0.0, false);
-  const MapperRun afresh =
-      map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS, false);
+  const MapperRun exact = map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS,
+                                    true, 0.0, false, 3, nullptr, &kDeterminismWindow);
+  const MapperRun afresh = map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS,
+                                     false, 0.0, true, 3, nullptr, &kDeterminismWindow);
   EXPECT_EQ(exact.counters.incremental_extractions, exact.counters.extractions - 1)
       << "all but the first";
   EXPECT_GT(exact.tiles_evicted, 0u);
