@@ -12,7 +12,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <numbers>
-#include <regex>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -176,6 +176,36 @@ Bytes hex_bytes(const std::string& text) {
   return bytes;
 }
 
+// A line of the start-up log's table: 'sMN Command <payload>'  len=N  xor=HH  <frame bytes>.
+struct LoggedCommand {
+  std::string type;     // sMN, sWN, sRN, sEN
+  std::string command;  // SetAccessMode, Run, ...
+  unsigned long length = 0;
+  unsigned long checksum = 0;
+  std::string frame_hex;
+};
+
+std::optional<LoggedCommand> parse_logged_command(const std::string& line) {
+  if (line.size() < 6 || line[0] != '\'' || line[1] != 's' || line[4] != ' ') {
+    return std::nullopt;
+  }
+  LoggedCommand logged;
+  logged.type = line.substr(1, 3);
+  const std::size_t name_end = line.find_first_of(" '", 5);
+  logged.command = line.substr(5, name_end - 5);
+  const std::size_t len_at = line.rfind("len=");
+  const std::size_t xor_at = line.rfind("xor=");
+  if (logged.command.empty() || len_at == std::string::npos || xor_at == std::string::npos ||
+      xor_at < len_at) {
+    return std::nullopt;
+  }
+  std::istringstream fields(line.substr(len_at + 4, xor_at - len_at - 4));
+  fields >> logged.length;
+  logged.checksum = std::stoul(line.substr(xor_at + 4, 2), nullptr, 16);
+  logged.frame_hex = line.substr(xor_at + 6);
+  return logged;
+}
+
 template <typename Encode>
 Bytes encoded(Encode&& encode, std::size_t capacity = std::size_t{32} * 1024) {
   Bytes out(capacity);
@@ -236,7 +266,6 @@ TEST(SickCola, ColaACommandsAreTextBetweenStxAndEtx) {
 TEST(SickCola, StartUpLogCommandFramesReEncodeByteForByte) {
   std::istringstream file(blockmap::testing::read_text(
       blockmap::testing::project_data("cola/colab_command_frames_from_tim5xx_startup_log.txt")));
-  const std::regex line_pattern(R"(^'(s[A-Z]{2}) (\w+).*len=(\d+)\s+xor=([0-9A-F]{2})\s+(.*)$)");
   ScanDataConfig tim_config;  // as logged: RSSI on, 8-bit, time block on
   tim_config.rssi = true;
   tim_config.rssi_16bit = false;
@@ -244,13 +273,15 @@ TEST(SickCola, StartUpLogCommandFramesReEncodeByteForByte) {
   std::size_t checked = 0;
   std::string line;
   while (std::getline(file, line)) {
-    std::smatch m;
-    if (!std::regex_match(line, m, line_pattern)) continue;
-    const Bytes logged = hex_bytes(m[5]);
-    ASSERT_EQ(logged.size(), std::stoul(m[3]) + 9) << line;
-    EXPECT_EQ(logged.back(), std::stoul(m[4], nullptr, 16)) << line;
-    const std::string type = m[1];
-    const std::string command = m[2];
+    const std::optional<LoggedCommand> row = parse_logged_command(line);
+    if (!row) {
+      continue;
+    }
+    const Bytes logged = hex_bytes(row->frame_hex);
+    ASSERT_EQ(logged.size(), row->length + 9) << line;
+    EXPECT_EQ(logged.back(), row->checksum) << line;
+    const std::string& type = row->type;
+    const std::string& command = row->command;
     Bytes ours;
     if (command == "SetAccessMode") {
       ours = encoded([](auto out) {
