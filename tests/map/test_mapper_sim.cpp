@@ -28,11 +28,10 @@ namespace {
 
 #if defined(BLOCKMAP_QUICK_WORLDS)
 constexpr double kDurationS = 60.0;
-constexpr double kDeterminismDurationS = 8.0;
 #else
 constexpr double kDurationS = 0.0;  // the whole path
-constexpr double kDeterminismDurationS = 8.0;
 #endif
+constexpr double kDeterminismDurationS = 8.0;
 // The determinism tests' window: 5 tiles of 4 m (8-12 m beyond the robot), so that tiles
 // with walls in them leave it within their seconds (with the far ground out of the map, no
 // tile leaves the default 7 tiles of 8 m in the quick worlds' 8 s).
