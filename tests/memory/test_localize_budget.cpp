@@ -4,10 +4,12 @@
 
 #include <array>
 #include <cmath>
+#include <optional>
 
 #include "blockmap/core/arena.hpp"
 #include "blockmap/localize/localizer.hpp"
 #include "blockmap/localize/particle_filter.hpp"
+#include "blockmap/localize/path_smoother.hpp"
 #include "memory_assertions.hpp"
 
 namespace blockmap::localize {
@@ -77,6 +79,39 @@ TEST(LocalizeBudget, TheLocalizerAllocatesNothingAfterInitEither) {
   });
   EXPECT_GT(finalized, 50u);
   EXPECT_LE(localizer.memory_bytes(), arena.used_bytes());
+  EXPECT_EQ(arena.failed_allocations().value(), 0u);
+}
+
+// The whole path at once: keyframes, thinning when they fill, and Gauss-Newton sweeps.
+TEST(LocalizeBudget, ThePathSmootherAllocatesNothingAfterInitAndFitsItsBudget) {
+  PathSmootherConfig config;
+  config.max_keyframes = 128;  // 400 fixes below: thinned
+  const std::size_t budget = PathSmoother::arena_bytes(config);
+  Arena arena(budget);
+  PathSmoother smoother;
+  smoother.init(arena, config);
+  arena.seal();
+  const auto drive = [&smoother] {
+    // 100 s east at 1 m/s, odometry at 100 Hz and GPS at 4 Hz, solved every 10 s.
+    for (int k = 1; k <= 10000; ++k) {
+      const TimestampNs stamp = TimestampNs{k} * 10'000'000;
+      const Pose2 odometry{stamp, 0.01 * k, 0.0, 0.0};
+      if (k % 25 == 0) {
+        smoother.add(odometry, Eigen::Vector2d(0.01 * k, 0.3 * std::sin(0.01 * k)));
+      } else {
+        smoother.add(odometry, std::nullopt);
+      }
+      if (k % 1000 == 0) {
+        smoother.solve();
+      }
+    }
+    static_cast<void>(smoother.pose_at(TimestampNs{50} * 1'000'000'000));
+  };
+  EXPECT_NO_ALLOCATIONS(drive());
+  EXPECT_GT(smoother.counters().thinnings, 0u);
+  EXPECT_EQ(smoother.counters().fixes, 400u);
+  EXPECT_LE(smoother.memory_bytes(), arena.used_bytes());
+  EXPECT_LE(arena.used_bytes(), budget);
   EXPECT_EQ(arena.failed_allocations().value(), 0u);
 }
 

@@ -44,8 +44,10 @@ struct ScanProjectorConfig {
   // grazing arcs out to its range: at 2 deg nose down the beams meet the ground 23 m ahead. Such
   // arcs put a few points in each of many samples all over the window, never make a plane, and
   // on benning were half of the window's samples (docs/mapper.md, Speed); the ground near the
-  // robot is dense and keeps its plane. Off by default (docs/mapper.md, Speed, 2026-12-02);
-  // hal::sim::mapper_config_for sets the axle's height from the robot file's wheel radius.
+  // robot is dense and keeps its plane. 0 in this struct; the mapper's configuration from a
+  // robot file (hal::sim::mapper_config_for) sets 8 m, and `[projection] far_ground_range_m
+  // = 0` turns it off (docs/mapper.md, Speed, 2026-12-02). mapper_config_for also sets the
+  // axle's height from the robot file's wheel radius.
   double far_ground_range_m = 0.0;
   // A return is ground when it lies less than this above the ground under the robot...
   double ground_band_m = 0.4;

@@ -1,0 +1,133 @@
+// The whole run's path as one least-squares problem: the first piece of the rigid map
+// (docs/localize.md, The whole path at once).
+//
+// Why. The particle filter's smoothed path follows the receiver's slow error, which wanders by
+// a metre over a minute: each building is drawn where the path was off while the robot passed
+// it, each by its own amount (docs/buildings.md). A path whose shape comes from the robot's
+// own motion (the scan matcher's, or the filter's calibrated dead reckoning) and whose place
+// comes from every fix of the run at once is off by the receiver's error averaged over the
+// run, the same for every building: about half a metre on benning instead of a metre, and
+// nothing a mapper fed that receiver can remove (scripts/gps-bound).
+//
+// The problem. One keyframe per fix (and one per keyframe_spacing_m of motion without fixes),
+// each with the state (x, y, yaw, bx, by): the robot's pose in the local frame and the
+// receiver's slow error at that time. Three kinds of terms, each a Gaussian:
+//  - motion: between consecutive keyframes, the odometry's relative motion in the first one's
+//    frame, its variance growing with the distance driven (along and across the way apart)
+//    and with the distance and time for the turn;
+//  - the receiver's slow error: a first-order Gauss-Markov process (stationary sigma
+//    bias_sigma_m, time constant bias_time_s), the model the filter and the simulator use;
+//  - fixes: position plus slow error equals the fix, with the fast part's variance.
+// Each term links a keyframe to itself or to the next one, so the normal equations are
+// block tridiagonal (5 x 5 blocks): Gauss-Newton solves them with a block Cholesky sweep
+// along the path, O(keyframes), in fixed-size Eigen blocks.
+//
+// Fixed size: every array is taken from the arena at init. When the keyframes fill, every
+// other one is merged into the one before it (its fix moved there by the path as solved, its
+// weight added), so a run of any length keeps the whole path at half the resolution (counted:
+// thinnings). add() and solve() allocate nothing.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+
+#include <Eigen/Core>
+
+#include "blockmap/core/arena.hpp"
+#include "blockmap/core/time.hpp"
+#include "blockmap/localize/particle_filter.hpp"
+
+namespace blockmap::localize {
+
+struct PathSmootherConfig {
+  std::size_t max_keyframes = 2048;  // at 4 Hz fixes, 8.5 minutes before the first thinning
+  // A keyframe every this much motion when no fix comes (an outage, a receiver without fix).
+  double keyframe_spacing_m = 1.0;
+  // The odometry's relative motion: the variance per metre driven, along and across the way,
+  // and of the turn per metre and per second (a gyroscope's bias left after calibration).
+  double along_sigma_per_sqrt_m = 0.02;
+  double across_sigma_per_sqrt_m = 0.01;
+  double yaw_sigma_per_sqrt_m = 0.002;
+  double yaw_sigma_per_sqrt_s = 0.001;
+  // The receiver: the slow part of its error per axis and how long it lasts, and the fast
+  // part per fix (multipath and noise) for a fix of sigma 1 (add()'s fix_sigma_scale).
+  double bias_sigma_m = 1.2;
+  double bias_time_s = 60.0;
+  double fix_sigma_m = 6.4;
+  // Gauss-Newton steps per solve(); each starts from the last solution.
+  std::uint32_t iterations = 3;
+};
+
+// Empty when usable, otherwise what is wrong.
+[[nodiscard]] std::string validate(const PathSmootherConfig& config);
+
+struct PathSmootherCounters {
+  std::uint64_t keyframes_added = 0;
+  std::uint64_t fixes = 0;
+  std::uint64_t thinnings = 0;  // the keyframes filled and every other one was merged
+  std::uint64_t solves = 0;
+  std::uint64_t refused = 0;  // add() with a time before the last keyframe's
+};
+
+class PathSmoother {
+ public:
+  void init(Arena& arena, const PathSmootherConfig& config);
+  [[nodiscard]] static std::size_t arena_bytes(const PathSmootherConfig& config) noexcept;
+  [[nodiscard]] std::size_t memory_bytes() const noexcept;
+
+  // The odometry's pose at odometry.stamp_ns (a frame that drifts but never jumps: the scan
+  // matcher's matched pose or the filter's dead reckoning), with the GPS fix of that time in
+  // the local frame when there is one (east, north; fix_sigma_scale multiplies the configured
+  // sigmas, an HDOP's worth). A keyframe is made for every fix, and for every
+  // keyframe_spacing_m of motion without one. Times must not go back (refused, counted).
+  void add(const Pose2& odometry, const std::optional<Eigen::Vector2d>& fix_m,
+           double fix_sigma_scale = 1.0) noexcept;
+
+  // Gauss-Newton over the whole path, from the last solution (new keyframes start where the
+  // odometry puts them from the keyframe before). Cost: O(keyframes) per iteration.
+  void solve() noexcept;
+
+  [[nodiscard]] std::size_t keyframe_count() const noexcept { return count_; }
+  // The solved pose and the receiver's solved slow error at keyframe i (0: the oldest).
+  [[nodiscard]] Pose2 pose(std::size_t i) const noexcept;
+  [[nodiscard]] Eigen::Vector2d receiver_error_m(std::size_t i) const noexcept;
+  // The solved pose at stamp_ns: the keyframe at or before it, moved by the odometry to the
+  // next one's time in proportion (odometry poses in between are not kept). Before the first
+  // keyframe, the first; after the last, the last.
+  [[nodiscard]] Pose2 pose_at(TimestampNs stamp_ns) const noexcept;
+  [[nodiscard]] const PathSmootherCounters& counters() const noexcept { return counters_; }
+
+ private:
+  struct Keyframe {
+    Pose2 odometry;           // as given
+    double fix_east_m = 0.0;  // the fixes merged into it, weighted mean
+    double fix_north_m = 0.0;
+    double fix_weight = 0.0;  // sum of 1 / sigma^2 of its fixes (0: none)
+    double state[5] = {};     // x, y, yaw, bx, by as solved
+  };
+  // The normal equations' blocks at keyframe i: the diagonal, the one coupling it to i + 1,
+  // and the gradient; overwritten by the sweep's factors.
+  struct Blocks {
+    double diagonal[25] = {};
+    double upper[25] = {};
+    double gradient[5] = {};
+  };
+
+  void append(const Pose2& odometry) noexcept;
+  void thin() noexcept;
+  void accumulate_motion(std::size_t i) noexcept;
+  void accumulate_receiver(std::size_t i) noexcept;
+  void accumulate_fix(std::size_t i) noexcept;
+  [[nodiscard]] bool sweep() noexcept;
+
+  PathSmootherConfig config_;
+  std::span<Keyframe> keyframes_;
+  std::span<Blocks> blocks_;
+  std::size_t count_ = 0;
+  PathSmootherCounters counters_;
+};
+
+}  // namespace blockmap::localize

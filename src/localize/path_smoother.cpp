@@ -1,0 +1,376 @@
+#include "blockmap/localize/path_smoother.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include <Eigen/Cholesky>
+
+#include "blockmap/core/check.hpp"
+
+namespace blockmap::localize {
+namespace {
+
+using Matrix5 = Eigen::Matrix<double, 5, 5, Eigen::RowMajor>;
+using Vector5 = Eigen::Matrix<double, 5, 1>;
+using Jacobian3 = Eigen::Matrix<double, 3, 5, Eigen::RowMajor>;
+using Jacobian2 = Eigen::Matrix<double, 2, 5, Eigen::RowMajor>;
+
+// The state's layout in a keyframe.
+constexpr int kX = 0;
+constexpr int kY = 1;
+constexpr int kYaw = 2;
+constexpr int kBiasX = 3;
+constexpr int kBiasY = 4;
+
+// Floors on the motion's variances: a robot standing still for a minute of fixes is held
+// still, but not so rigidly that the normal equations lose their digits.
+constexpr double kMinMotionVarianceM2 = 1e-6;
+constexpr double kMinTurnVarianceRad2 = 1e-8;
+// The receiver's error between two fixes of one epoch is the same error (1 - a^2 floored).
+constexpr double kMinBiasDecay = 1e-6;
+// Added to every diagonal: the path without a single fix has no place of its own.
+constexpr double kDamping = 1e-9;
+
+double wrap(double angle_rad) noexcept {
+  return std::remainder(angle_rad, 2.0 * std::numbers::pi);
+}
+
+bool positive(double value) noexcept {
+  return std::isfinite(value) && value > 0.0;
+}
+
+Eigen::Map<Matrix5> matrix(double (&block)[25]) noexcept {
+  return Eigen::Map<Matrix5>(block);
+}
+
+Eigen::Map<Vector5> vector(double (&block)[5]) noexcept {
+  return Eigen::Map<Vector5>(block);
+}
+
+// The odometry's motion from `from` to `to` in `from`'s frame: (along, across, turn).
+Eigen::Vector3d relative_motion(const Pose2& from, const Pose2& to) noexcept {
+  const double c = std::cos(from.yaw_rad);
+  const double s = std::sin(from.yaw_rad);
+  const double dx = to.x_m - from.x_m;
+  const double dy = to.y_m - from.y_m;
+  return {c * dx + s * dy, -s * dx + c * dy, wrap(to.yaw_rad - from.yaw_rad)};
+}
+
+}  // namespace
+
+std::string validate(const PathSmootherConfig& config) {
+  if (config.max_keyframes < 4) {
+    return "path smoother: max_keyframes must be at least 4";
+  }
+  if (!positive(config.keyframe_spacing_m) || !positive(config.along_sigma_per_sqrt_m) ||
+      !positive(config.across_sigma_per_sqrt_m) || !positive(config.yaw_sigma_per_sqrt_m) ||
+      !positive(config.yaw_sigma_per_sqrt_s)) {
+    return "path smoother: keyframe_spacing_m and the motion's sigmas must be positive";
+  }
+  if (!positive(config.bias_sigma_m) || !positive(config.bias_time_s) ||
+      !positive(config.fix_sigma_m)) {
+    return "path smoother: bias_sigma_m, bias_time_s and fix_sigma_m must be positive";
+  }
+  if (config.iterations == 0) {
+    return "path smoother: iterations must be at least 1";
+  }
+  return {};
+}
+
+std::size_t PathSmoother::arena_bytes(const PathSmootherConfig& config) noexcept {
+  constexpr std::size_t kSlack = 2 * alignof(std::max_align_t);
+  return config.max_keyframes * (sizeof(Keyframe) + sizeof(Blocks)) + kSlack;
+}
+
+void PathSmoother::init(Arena& arena, const PathSmootherConfig& config) {
+  const std::string problem = validate(config);
+  BLOCKMAP_CHECK_MSG(problem.empty(), problem.c_str());
+  config_ = config;
+  keyframes_ = arena.allocate_array<Keyframe>(config.max_keyframes, "localize.path_keyframes");
+  blocks_ = arena.allocate_array<Blocks>(config.max_keyframes, "localize.path_normal_equations");
+  count_ = 0;
+  counters_ = {};
+}
+
+std::size_t PathSmoother::memory_bytes() const noexcept {
+  return keyframes_.size_bytes() + blocks_.size_bytes();
+}
+
+void PathSmoother::add(const Pose2& odometry, const std::optional<Eigen::Vector2d>& fix_m,
+                       double fix_sigma_scale) noexcept {
+  if (count_ > 0 && odometry.stamp_ns < keyframes_[count_ - 1].odometry.stamp_ns) {
+    ++counters_.refused;
+    return;
+  }
+  const bool same_time =
+      count_ > 0 && odometry.stamp_ns == keyframes_[count_ - 1].odometry.stamp_ns;
+  if (fix_m.has_value()) {
+    if (!same_time) {
+      append(odometry);
+    }
+    Keyframe& keyframe = keyframes_[count_ - 1];
+    if (counters_.fixes == 0) {
+      // The first fix says where the path is: every keyframe so far moves with it, so that
+      // Gauss-Newton starts near the answer.
+      const double dx = fix_m->x() - keyframe.state[kX];
+      const double dy = fix_m->y() - keyframe.state[kY];
+      for (std::size_t i = 0; i < count_; ++i) {
+        keyframes_[i].state[kX] += dx;
+        keyframes_[i].state[kY] += dy;
+      }
+    }
+    const double sigma_m = config_.fix_sigma_m * std::max(fix_sigma_scale, 1e-3);
+    const double weight = 1.0 / (sigma_m * sigma_m);
+    const double total = keyframe.fix_weight + weight;
+    keyframe.fix_east_m += (fix_m->x() - keyframe.fix_east_m) * weight / total;
+    keyframe.fix_north_m += (fix_m->y() - keyframe.fix_north_m) * weight / total;
+    keyframe.fix_weight = total;
+    ++counters_.fixes;
+    return;
+  }
+  if (count_ == 0) {
+    append(odometry);
+    return;
+  }
+  const Pose2& last = keyframes_[count_ - 1].odometry;
+  if (std::hypot(odometry.x_m - last.x_m, odometry.y_m - last.y_m) >= config_.keyframe_spacing_m) {
+    append(odometry);
+  }
+}
+
+void PathSmoother::append(const Pose2& odometry) noexcept {
+  if (count_ == keyframes_.size()) {
+    thin();
+  }
+  Keyframe& next = keyframes_[count_];
+  next = Keyframe{};
+  next.odometry = odometry;
+  if (count_ == 0) {
+    next.state[kX] = odometry.x_m;
+    next.state[kY] = odometry.y_m;
+    next.state[kYaw] = odometry.yaw_rad;
+  } else {
+    // Where the odometry puts it from the keyframe before, as solved.
+    const Keyframe& before = keyframes_[count_ - 1];
+    const Eigen::Vector3d motion = relative_motion(before.odometry, odometry);
+    const double c = std::cos(before.state[kYaw]);
+    const double s = std::sin(before.state[kYaw]);
+    next.state[kX] = before.state[kX] + c * motion.x() - s * motion.y();
+    next.state[kY] = before.state[kY] + s * motion.x() + c * motion.y();
+    next.state[kYaw] = wrap(before.state[kYaw] + motion.z());
+    const double decay = std::exp(-seconds_from_ns(odometry.stamp_ns - before.odometry.stamp_ns) /
+                                  config_.bias_time_s);
+    next.state[kBiasX] = decay * before.state[kBiasX];
+    next.state[kBiasY] = decay * before.state[kBiasY];
+  }
+  ++count_;
+  ++counters_.keyframes_added;
+}
+
+void PathSmoother::thin() noexcept {
+  // Odd keyframes go into the even one before them; the newest stays, so that the path ends
+  // where the odometry last was. A merged fix is moved by the solved motion between the two.
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < count_; ++i) {
+    const bool merged = i % 2 == 1 && i + 1 < count_;
+    if (!merged) {
+      keyframes_[kept++] = keyframes_[i];
+      continue;
+    }
+    Keyframe& into = keyframes_[kept - 1];
+    const Keyframe& from = keyframes_[i];
+    if (from.fix_weight > 0.0) {
+      const double east_m = from.fix_east_m - (from.state[kX] - into.state[kX]);
+      const double north_m = from.fix_north_m - (from.state[kY] - into.state[kY]);
+      const double total = into.fix_weight + from.fix_weight;
+      into.fix_east_m += (east_m - into.fix_east_m) * from.fix_weight / total;
+      into.fix_north_m += (north_m - into.fix_north_m) * from.fix_weight / total;
+      into.fix_weight = total;
+    }
+  }
+  count_ = kept;
+  ++counters_.thinnings;
+}
+
+void PathSmoother::accumulate_motion(std::size_t i) noexcept {
+  const Keyframe& a = keyframes_[i];
+  const Keyframe& b = keyframes_[i + 1];
+  const Eigen::Vector3d measured = relative_motion(a.odometry, b.odometry);
+  const double distance_m = std::hypot(measured.x(), measured.y());
+  const double dt_s = seconds_from_ns(b.odometry.stamp_ns - a.odometry.stamp_ns);
+  const double c = std::cos(a.state[kYaw]);
+  const double s = std::sin(a.state[kYaw]);
+  const double dx = b.state[kX] - a.state[kX];
+  const double dy = b.state[kY] - a.state[kY];
+  const Eigen::Vector3d residual(c * dx + s * dy - measured.x(), -s * dx + c * dy - measured.y(),
+                                 wrap(b.state[kYaw] - a.state[kYaw] - measured.z()));
+  const Eigen::Vector3d information(
+      1.0 / (config_.along_sigma_per_sqrt_m * config_.along_sigma_per_sqrt_m * distance_m +
+             kMinMotionVarianceM2),
+      1.0 / (config_.across_sigma_per_sqrt_m * config_.across_sigma_per_sqrt_m * distance_m +
+             kMinMotionVarianceM2),
+      1.0 / (config_.yaw_sigma_per_sqrt_m * config_.yaw_sigma_per_sqrt_m * distance_m +
+             config_.yaw_sigma_per_sqrt_s * config_.yaw_sigma_per_sqrt_s * dt_s +
+             kMinTurnVarianceRad2));
+  Jacobian3 ja = Jacobian3::Zero();
+  Jacobian3 jb = Jacobian3::Zero();
+  ja(0, kX) = -c;
+  ja(0, kY) = -s;
+  ja(1, kX) = s;
+  ja(1, kY) = -c;
+  ja(0, kYaw) = -s * dx + c * dy;
+  ja(1, kYaw) = -c * dx - s * dy;
+  ja(2, kYaw) = -1.0;
+  jb(0, kX) = c;
+  jb(0, kY) = s;
+  jb(1, kX) = -s;
+  jb(1, kY) = c;
+  jb(2, kYaw) = 1.0;
+  const Eigen::DiagonalMatrix<double, 3> omega(information);
+  matrix(blocks_[i].diagonal) += ja.transpose() * omega * ja;
+  matrix(blocks_[i + 1].diagonal) += jb.transpose() * omega * jb;
+  matrix(blocks_[i].upper) += ja.transpose() * omega * jb;
+  vector(blocks_[i].gradient) += ja.transpose() * omega * residual;
+  vector(blocks_[i + 1].gradient) += jb.transpose() * omega * residual;
+}
+
+void PathSmoother::accumulate_receiver(std::size_t i) noexcept {
+  const double stationary = 1.0 / (config_.bias_sigma_m * config_.bias_sigma_m);
+  if (i == 0) {
+    // The first keyframe's slow error: the process's own spread.
+    for (const int axis : {kBiasX, kBiasY}) {
+      matrix(blocks_[0].diagonal)(axis, axis) += stationary;
+      vector(blocks_[0].gradient)(axis) += stationary * keyframes_[0].state[axis];
+    }
+  }
+  if (i + 1 == count_) {
+    return;
+  }
+  // b(i+1) = a b(i) + w, var(w) = sigma^2 (1 - a^2).
+  const Keyframe& a = keyframes_[i];
+  const Keyframe& b = keyframes_[i + 1];
+  const double decay =
+      std::exp(-seconds_from_ns(b.odometry.stamp_ns - a.odometry.stamp_ns) / config_.bias_time_s);
+  const double information = stationary / std::max(1.0 - decay * decay, kMinBiasDecay);
+  for (const int axis : {kBiasX, kBiasY}) {
+    const double residual = b.state[axis] - decay * a.state[axis];
+    matrix(blocks_[i].diagonal)(axis, axis) += information * decay * decay;
+    matrix(blocks_[i + 1].diagonal)(axis, axis) += information;
+    matrix(blocks_[i].upper)(axis, axis) += -information * decay;
+    vector(blocks_[i].gradient)(axis) += -information * decay * residual;
+    vector(blocks_[i + 1].gradient)(axis) += information * residual;
+  }
+}
+
+void PathSmoother::accumulate_fix(std::size_t i) noexcept {
+  const Keyframe& keyframe = keyframes_[i];
+  if (keyframe.fix_weight <= 0.0) {
+    return;
+  }
+  // position + slow error = fix.
+  const Eigen::Vector2d residual(
+      keyframe.state[kX] + keyframe.state[kBiasX] - keyframe.fix_east_m,
+      keyframe.state[kY] + keyframe.state[kBiasY] - keyframe.fix_north_m);
+  Jacobian2 j = Jacobian2::Zero();
+  j(0, kX) = 1.0;
+  j(0, kBiasX) = 1.0;
+  j(1, kY) = 1.0;
+  j(1, kBiasY) = 1.0;
+  matrix(blocks_[i].diagonal) += keyframe.fix_weight * j.transpose() * j;
+  vector(blocks_[i].gradient) += keyframe.fix_weight * j.transpose() * residual;
+}
+
+bool PathSmoother::sweep() noexcept {
+  // Block Cholesky along the path: S(i) = D(i) - X(i-1)' S(i-1) X(i-1), X(i) = S(i)^-1 U(i),
+  // w(i) = S(i)^-1 (-g(i) - X(i-1)' y(i-1)); then back: step(i) = w(i) - X(i) step(i+1).
+  Matrix5 previous_s = Matrix5::Zero();
+  Vector5 previous_y = Vector5::Zero();
+  for (std::size_t i = 0; i < count_; ++i) {
+    Matrix5 s = matrix(blocks_[i].diagonal);
+    Vector5 y = -vector(blocks_[i].gradient);
+    if (i > 0) {
+      const Eigen::Map<Matrix5> x_before = matrix(blocks_[i - 1].upper);
+      s.noalias() -= x_before.transpose() * previous_s * x_before;
+      y.noalias() -= x_before.transpose() * previous_y;
+    }
+    const Eigen::LLT<Matrix5> factor(s);
+    if (factor.info() != Eigen::Success) {
+      return false;
+    }
+    matrix(blocks_[i].upper) = factor.solve(matrix(blocks_[i].upper));
+    vector(blocks_[i].gradient) = factor.solve(y);
+    previous_s = s;
+    previous_y = y;
+  }
+  for (std::size_t i = count_ - 1; i-- > 0;) {
+    vector(blocks_[i].gradient).noalias() -=
+        matrix(blocks_[i].upper) * vector(blocks_[i + 1].gradient);
+  }
+  return true;
+}
+
+void PathSmoother::solve() noexcept {
+  if (count_ < 2) {
+    return;
+  }
+  ++counters_.solves;
+  for (std::uint32_t iteration = 0; iteration < config_.iterations; ++iteration) {
+    for (std::size_t i = 0; i < count_; ++i) {
+      blocks_[i] = Blocks{};
+      matrix(blocks_[i].diagonal).diagonal().array() += kDamping;
+    }
+    for (std::size_t i = 0; i < count_; ++i) {
+      accumulate_fix(i);
+      accumulate_receiver(i);
+      if (i + 1 < count_) {
+        accumulate_motion(i);
+      }
+    }
+    if (!sweep()) {
+      return;
+    }
+    for (std::size_t i = 0; i < count_; ++i) {
+      for (int k = 0; k < 5; ++k) {
+        keyframes_[i].state[k] += blocks_[i].gradient[k];
+      }
+      keyframes_[i].state[kYaw] = wrap(keyframes_[i].state[kYaw]);
+    }
+  }
+}
+
+Pose2 PathSmoother::pose(std::size_t i) const noexcept {
+  BLOCKMAP_CHECK(i < count_);
+  const Keyframe& k = keyframes_[i];
+  return Pose2{k.odometry.stamp_ns, k.state[kX], k.state[kY], k.state[kYaw]};
+}
+
+Eigen::Vector2d PathSmoother::receiver_error_m(std::size_t i) const noexcept {
+  BLOCKMAP_CHECK(i < count_);
+  return {keyframes_[i].state[kBiasX], keyframes_[i].state[kBiasY]};
+}
+
+Pose2 PathSmoother::pose_at(TimestampNs stamp_ns) const noexcept {
+  BLOCKMAP_CHECK_MSG(count_ > 0, "pose_at() before the first keyframe");
+  const auto first = keyframes_.begin();
+  const auto last = first + static_cast<std::ptrdiff_t>(count_);
+  const auto after = std::upper_bound(first, last, stamp_ns, [](TimestampNs t, const Keyframe& k) {
+    return t < k.odometry.stamp_ns;
+  });
+  if (after == first) {
+    return pose(0);
+  }
+  if (after == last) {
+    Pose2 end = pose(count_ - 1);
+    end.stamp_ns = stamp_ns;
+    return end;
+  }
+  const Pose2 a = pose(static_cast<std::size_t>(after - first) - 1);
+  const Pose2 b = pose(static_cast<std::size_t>(after - first));
+  const double f =
+      static_cast<double>(stamp_ns - a.stamp_ns) / static_cast<double>(b.stamp_ns - a.stamp_ns);
+  return Pose2{stamp_ns, a.x_m + f * (b.x_m - a.x_m), a.y_m + f * (b.y_m - a.y_m),
+               wrap(a.yaw_rad + f * wrap(b.yaw_rad - a.yaw_rad))};
+}
+
+}  // namespace blockmap::localize
