@@ -1,11 +1,22 @@
 # Build options, one place. Presets (CMakePresets.json) set these; the defaults build a plain
 # host tree with tests.
 option(BLOCKMAP_BUILD_TESTS "Build the test tiers (unit, memory, build rules)" ON)
+option(BLOCKMAP_WORLD_TESTS_ONLY
+       "Build only the test programs that drive whole simulated worlds (scripts/test's worlds tree)" OFF)
 option(BLOCKMAP_BUILD_BENCHMARKS "Build Google Benchmark programs (host only)" OFF)
 option(BLOCKMAP_BUILD_PEER_BENCHMARKS
        "Build the peer benchmark (PCL, CGAL, Open3D; scripts/bench-peers installs them)" OFF)
 option(BLOCKMAP_SANITIZE "Build with AddressSanitizer and UndefinedBehaviorSanitizer" OFF)
 option(BLOCKMAP_BUILD_FUZZERS "Build libFuzzer targets for the protocol codecs (clang only)" OFF)
+# Unity builds: the test trees' sources compiled eight to a unit, so that GoogleTest's, Eigen's and
+# our own headers are parsed once per eight files instead of once per file (docs/README.md, "What
+# scripts/test costs"). Every source must then be fine beside any other: no two files of a
+# target may define the same name at namespace scope, anonymous namespaces included.
+option(BLOCKMAP_UNITY "Compile each target's sources in batches of eight (unity build)" OFF)
+if(BLOCKMAP_UNITY)
+  set(CMAKE_UNITY_BUILD ON)
+  set(CMAKE_UNITY_BUILD_BATCH_SIZE 8)
+endif()
 option(BLOCKMAP_USE_CCACHE "Use ccache as the compiler launcher when it is installed" ON)
 set(BLOCKMAP_HOST_LABEL "host" CACHE STRING "ctest label of tests built for the host")
 set(BLOCKMAP_TARGET_LABEL "${CMAKE_SYSTEM_PROCESSOR}" CACHE STRING

@@ -30,10 +30,6 @@ constexpr std::size_t kRecordBytes = std::size_t{1} << 16;
 // How long a write may wait for a pty whose reader is slow before its bytes are discarded.
 constexpr int kWriteWaitMs = 200;
 
-std::string os_error(int error) {
-  return std::generic_category().message(error);
-}
-
 // One serial line: a pseudo-terminal whose far end the daemon opens through the link.
 struct Line {
   std::string name;
@@ -48,7 +44,7 @@ struct Line {
   std::string open_pty() {
     close_pty();
     if (::openpty(&master, &slave, nullptr, nullptr, nullptr) != 0) {
-      return "a pseudo-terminal for " + name + ": " + os_error(errno);
+      return "a pseudo-terminal for " + name + ": " + std::generic_category().message(errno);
     }
     // Raw from the start, so that nothing is echoed or translated before the daemon sets it.
     termios tio{};
@@ -58,7 +54,8 @@ struct Line {
     ::fcntl(master, F_SETFL, ::fcntl(master, F_GETFL) | O_NONBLOCK);
     std::array<char, 128> path{};
     if (::ptsname_r(master, path.data(), path.size()) != 0) {
-      return "the name of " + name + "'s pseudo-terminal: " + os_error(errno);
+      return "the name of " + name +
+             "'s pseudo-terminal: " + std::generic_category().message(errno);
     }
     // A new link replaces the old one in one step: the daemon never sees it missing.
     const fs::path temporary = link.string() + ".new";

@@ -15,7 +15,7 @@ bool chip_gone(int error) noexcept {
   return error == ENODEV || error == ENXIO || error == EBADF || error == EIO;
 }
 
-IoStatus status_of(int error) noexcept {
+IoStatus status_of_errno(int error) noexcept {
   return chip_gone(error) ? IoStatus::kDeviceLost : IoStatus::kIoError;
 }
 
@@ -87,7 +87,7 @@ IoStatus GpiodLine::do_set(bool active) {
     return IoStatus::kInvalidArgument;
   }
   if (::gpiod_line_set_value(line_, active ? 1 : 0) != 0) {
-    return status_of(errno);
+    return status_of_errno(errno);
   }
   return IoStatus::kOk;
 }
@@ -98,7 +98,7 @@ IoStatus GpiodLine::do_get(bool& active) {
   }
   const int value = ::gpiod_line_get_value(line_);
   if (value < 0) {
-    return status_of(errno);
+    return status_of_errno(errno);
   }
   active = value == 1;
   return IoStatus::kOk;
@@ -120,7 +120,7 @@ GpioEdge GpiodLine::do_wait_edge(TimestampNs timeout_ns) {
   }
   gpiod_line_event event{};
   if (waited < 0 || ::gpiod_line_event_read(line_, &event) != 0) {
-    return GpioEdge{status_of(errno), false, 0};
+    return GpioEdge{status_of_errno(errno), false, 0};
   }
   const TimestampNs stamp_ns = static_cast<TimestampNs>(event.ts.tv_sec) * kNanosecondsPerSecond +
                                static_cast<TimestampNs>(event.ts.tv_nsec);

@@ -28,7 +28,7 @@ unsigned int timeout_ms(TimestampNs timeout_ns) noexcept {
   return ms > 3'600'000 ? 3'600'000U : static_cast<unsigned int>(ms);
 }
 
-IoStatus status_of(int error) noexcept {
+IoStatus status_of_libusb_error(int error) noexcept {
   switch (error) {
     case LIBUSB_ERROR_NO_DEVICE:
     case LIBUSB_ERROR_NOT_FOUND:
@@ -333,7 +333,7 @@ WriteResult LibusbBulk::do_transfer_out(std::span<const std::uint8_t> bytes,
   if (result == LIBUSB_ERROR_PIPE) {
     static_cast<void>(::libusb_clear_halt(handle_, out_endpoint_));
   }
-  return WriteResult{status_of(result), 0};
+  return WriteResult{status_of_libusb_error(result), 0};
 }
 
 }  // namespace blockmap::hal::linux_backend

@@ -1,15 +1,8 @@
 #include "blockmap/hal/sim/loopback_can_bus.hpp"
 
+#include "blockmap/hal/sim/random.hpp"
+
 namespace blockmap::hal::sim {
-namespace {
-
-double uniform(std::minstd_rand& random) {
-  return static_cast<double>(random() - std::minstd_rand::min()) /
-         (static_cast<double>(std::minstd_rand::max() - std::minstd_rand::min()) + 1.0);
-}
-
-}  // namespace
-
 LoopbackCanBus::LoopbackCanBus(ManualClock& clock, const LoopbackCanConfig& config,
                                std::span<PendingCanFrame> pending_storage,
                                std::span<CanFrame> sent_storage)
@@ -20,7 +13,7 @@ LoopbackCanBus::LoopbackCanBus(ManualClock& clock, const LoopbackCanConfig& conf
       sent_log_(sent_storage) {}
 
 IoStatus LoopbackCanBus::inject(const CanFrame& frame) {
-  if (config_.drop_probability > 0.0 && uniform(random_) < config_.drop_probability) {
+  if (config_.drop_probability > 0.0 && uniform_unit(random_) < config_.drop_probability) {
     drops_.increment();
     return IoStatus::kOk;  // lost on the wire: the sender cannot tell
   }
@@ -28,7 +21,8 @@ IoStatus LoopbackCanBus::inject(const CanFrame& frame) {
   if (!pending_.try_push(pending)) {
     return IoStatus::kOverflow;
   }
-  if (config_.duplicate_probability > 0.0 && uniform(random_) < config_.duplicate_probability) {
+  if (config_.duplicate_probability > 0.0 &&
+      uniform_unit(random_) < config_.duplicate_probability) {
     duplicates_.increment();
     (void)pending_.try_push(pending);
   }

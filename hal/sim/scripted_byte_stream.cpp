@@ -3,18 +3,13 @@
 #include <algorithm>
 
 #include "blockmap/core/check.hpp"
+#include "blockmap/hal/sim/random.hpp"
 
 namespace blockmap::hal::sim {
 namespace {
 
-// A uniform double in [0, 1) from the engine, the same on every platform.
-double uniform(std::minstd_rand& random) {
-  return static_cast<double>(random() - std::minstd_rand::min()) /
-         (static_cast<double>(std::minstd_rand::max() - std::minstd_rand::min()) + 1.0);
-}
-
 std::size_t uniform_size(std::minstd_rand& random, std::size_t low, std::size_t high) {
-  return low + static_cast<std::size_t>(uniform(random) * static_cast<double>(high - low + 1));
+  return low + static_cast<std::size_t>(uniform_unit(random) * static_cast<double>(high - low + 1));
 }
 
 }  // namespace
@@ -41,7 +36,7 @@ ReadResult ScriptedByteStream::do_read(std::span<std::uint8_t> buffer, Timestamp
     return ReadResult{IoStatus::kClosed, 0, 0};
   }
   std::size_t filled = 0;
-  if (config_.garbage_probability > 0.0 && uniform(random_) < config_.garbage_probability) {
+  if (config_.garbage_probability > 0.0 && uniform_unit(random_) < config_.garbage_probability) {
     const std::size_t garbage = std::min(buffer.size() - 1, uniform_size(random_, 1, 16));
     for (std::size_t i = 0; i < garbage; ++i) {
       buffer[filled++] = static_cast<std::uint8_t>(random_());
@@ -52,11 +47,12 @@ ReadResult ScriptedByteStream::do_read(std::span<std::uint8_t> buffer, Timestamp
                                       buffer.size() - filled, script_.size() - position_});
   for (std::size_t i = 0; i < chunk; ++i) {
     std::uint8_t byte = script_[position_++];
-    if (config_.drop_probability > 0.0 && uniform(random_) < config_.drop_probability) {
+    if (config_.drop_probability > 0.0 && uniform_unit(random_) < config_.drop_probability) {
       drops_.increment();
       continue;
     }
-    if (config_.bit_flip_probability > 0.0 && uniform(random_) < config_.bit_flip_probability) {
+    if (config_.bit_flip_probability > 0.0 &&
+        uniform_unit(random_) < config_.bit_flip_probability) {
       byte = static_cast<std::uint8_t>(byte ^ (1U << (random_() % 8)));
       flips_.increment();
     }

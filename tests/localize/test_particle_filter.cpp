@@ -11,6 +11,7 @@
 #include "blockmap/core/arena.hpp"
 #include "blockmap/core/random.hpp"
 #include "blockmap/localize/particle_filter.hpp"
+#include "long_test.hpp"
 #include "synthetic_drive.hpp"
 
 namespace blockmap::localize {
@@ -27,6 +28,7 @@ LocalizeConfig behaviour_config() {
 }
 
 TEST(ParticleFilter, FindsItsHeadingAndTracksTheLoopBetterThanGps) {
+  BLOCKMAP_LONG_TEST();
   // Three drives (their own seeds for the drive and the filter): one drive's figure moves by
   // a tenth with the filter's random draws, the mean of three by much less.
   constexpr int kDrives = 3;

@@ -12,6 +12,7 @@
 
 #include "blockmap/core/arena.hpp"
 #include "blockmap/localize/path_smoother.hpp"
+#include "long_test.hpp"
 #include "synthetic_drive.hpp"
 
 namespace blockmap::localize {
@@ -130,6 +131,7 @@ TEST(PathSmoother, TheWholePathSitsWhereTheRunsFixesPutItOnAverage) {
 }
 
 TEST(PathSmoother, ItIsBetterThanTheParticleFiltersSmoothedPathOnTheSameDrive) {
+  BLOCKMAP_LONG_TEST();
   synthetic::DriveOptions drive;
   drive.seed = 2;
   const std::vector<synthetic::Sample> samples = synthetic::drive(drive);

@@ -12,6 +12,8 @@
 
 #include <Eigen/Core>
 
+#include "long_test.hpp"
+
 namespace blockmap::localize {
 namespace {
 
@@ -129,6 +131,7 @@ ScanMatchConfig street_config() {
 }
 
 TEST(ScanMatcher, MatchedPosesFollowTheStreetWhereTheOdometryDrifts) {
+  BLOCKMAP_LONG_TEST();
   const std::vector<Segment> scene = street();
   const ScanMatchConfig config = street_config();
   Arena arena(ScanMatcher::arena_bytes(config));

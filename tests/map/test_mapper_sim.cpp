@@ -20,6 +20,7 @@
 #include "blockmap/hal/sim/world.hpp"
 #include "blockmap/pipeline/mapper.hpp"
 #include "footprint_score.hpp"
+#include "long_test.hpp"
 #include "plane_truth.hpp"
 #include "recorded_mapper_inputs.hpp"
 
@@ -220,6 +221,7 @@ void expect_stream_gives_final_list(const MapperRun& run) {
 }
 
 TEST(MapperSim, UscBlockWithTruePosesFindsTheFaces) {
+  BLOCKMAP_LONG_TEST();
   const MapperRun run = map_world("usc_block", PoseSource::kExternal);
   const testing::PlaneScore s = score(run, "usc_block, true poses");
   EXPECT_GE(s.faces_considered, 3u);
@@ -240,6 +242,7 @@ TEST(MapperSim, UscBlockWithTruePosesFindsTheFaces) {
 // (barren_section_growth and settled_section_growth 0) the stream is also the same, byte for byte,
 // as with every window detected afresh (incremental_extraction off).
 TEST(MapperSim, TheSameRunGivesTheSameStreamWithOrWithoutKeptShapes) {
+  BLOCKMAP_LONG_TEST();
   const MapperRun a = map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS, true,
                                 0.0, true, 3, nullptr, &kDeterminismWindow);
   const MapperRun b = map_world("usc_block", PoseSource::kLocalizer, kDeterminismDurationS, true,
@@ -270,6 +273,7 @@ TEST(MapperSim, TheSameRunGivesTheSameStreamWithOrWithoutKeptShapes) {
 // two steps: one message a step (blockmap replay), or whatever arrived since the last step (the
 // daemon's pipeline thread, whose batches grow when it falls behind).
 TEST(MapperSim, TheSameMessagesBatchedAnyWayGiveTheSameStream) {
+  BLOCKMAP_LONG_TEST();
   testing::RecordedMapperInputs inputs("usc_block", kDeterminismDurationS + 10.0);
   ASSERT_TRUE(inputs.started);
   // In time order, as blockmap replay and the daemon's replay source hand them over.

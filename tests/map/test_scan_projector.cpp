@@ -9,11 +9,12 @@
 #include <vector>
 
 #include "blockmap/map/scan_projector.hpp"
+#include "test_units.hpp"
 
 namespace blockmap::map {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
+using blockmap::testing::kDeg;
 
 localize::Pose3 pose(TimestampNs stamp_ns, double x_m, double y_m, double z_m, double roll_rad,
                      double pitch_rad, double yaw_rad) {

@@ -10,7 +10,7 @@
 #if defined(BLOCKMAP_SANITIZED)
 // From the sanitizer runtime's public interface (sanitizer/allocator_interface.h, which
 // clang ships and gcc's packages do not): the hooks run on every allocation it serves.
-extern "C" int __sanitizer_install_malloc_and_free_hooks(
+extern "C" int __sanitizer_install_malloc_and_free_hooks(  // NOLINT(bugprone-reserved-identifier)
     void (*malloc_hook)(const volatile void* pointer, std::size_t size),
     void (*free_hook)(const volatile void* pointer));
 #endif

@@ -16,11 +16,12 @@
 #include "blockmap/planes/corner_look.hpp"
 #include "blockmap/planes/plane_merger.hpp"
 #include "blockmap/planes/voxel_grid.hpp"
+#include "test_units.hpp"
 
 namespace blockmap::planes {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
+using blockmap::testing::kDeg;
 
 // The building stands on y in [0, 8] and x in [0, 12], 6 m high; the street is y < 0.
 constexpr double kEastX = 12.0;

@@ -15,6 +15,7 @@
 #include "blockmap/hal/sim/truth_cloud.hpp"
 #include "blockmap/hal/sim/world.hpp"
 #include "blockmap/planes/plane_detector.hpp"
+#include "long_test.hpp"
 #include "plane_truth.hpp"
 
 namespace blockmap::planes {
@@ -161,10 +162,12 @@ void expect_issue_accuracy(const WorldRun& run) {
 }
 
 TEST(PlaneAccuracy, UscBlock) {
+  BLOCKMAP_LONG_TEST();
   expect_issue_accuracy(detect_in_world("usc_block"));
 }
 
 TEST(PlaneAccuracy, Benning) {
+  BLOCKMAP_LONG_TEST();
   expect_issue_accuracy(detect_in_world("benning"));
 }
 
@@ -186,6 +189,7 @@ void expect_robust_recall(const std::string& world) {
 }
 
 TEST(PlaneRobustness, UscBlockWithSlopedGroundAndLeaningWalls) {
+  BLOCKMAP_LONG_TEST();
   expect_robust_recall("usc_block");
 }
 

@@ -19,11 +19,13 @@
 #include "blockmap/planes/polygon.hpp"
 #include "blockmap/planes/section_grid.hpp"
 #include "blockmap/planes/voxel_grid.hpp"
+#include "long_test.hpp"
+#include "test_units.hpp"
 
 namespace blockmap::planes {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
+using blockmap::testing::kDeg;
 
 Eigen::Vector3f direction(double theta_deg, double phi_deg) {
   const double t = theta_deg * kDeg;
@@ -1012,6 +1014,7 @@ TEST(PlaneDetector, ABarrenSectionIsSearchedAgainOnceItHasGrownByTheFraction) {
 // it took; with 0, or once the returns have grown by a third, it is searched again and gives
 // the planes of a detection afresh. A section that lost free points is searched again at once.
 TEST(PlaneDetector, ASettledSectionGivesItsPlanesTillItHasGrownByTheFraction) {
+  BLOCKMAP_LONG_TEST();
   const std::vector<Eigen::Vector3f> room = room_cloud(4, false);
   const auto room_seen = [&](std::size_t times) {
     std::vector<Eigen::Vector3f> points;

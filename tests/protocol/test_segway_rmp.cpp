@@ -12,11 +12,12 @@
 
 #include "blockmap/hal/protocol/candump.hpp"
 #include "test_data.hpp"
+#include "test_units.hpp"
 
 namespace blockmap::hal::protocol::segway_rmp {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
+using blockmap::testing::kDeg;
 
 std::vector<CanFrame> read_id_bytes_file(const std::filesystem::path& path) {
   std::istringstream text(blockmap::testing::read_text(path));

@@ -17,6 +17,7 @@
 
 #include "byte_streams.hpp"
 #include "test_data.hpp"
+#include "test_units.hpp"
 
 namespace blockmap::hal::protocol::sick_lms2xx {
 namespace {
@@ -26,7 +27,7 @@ using blockmap::testing::concat;
 using Event = Decoder::Event;
 using Bytes = std::vector<std::uint8_t>;
 
-constexpr double kDeg = std::numbers::pi / 180.0;
+using blockmap::testing::kDeg;
 
 Bytes hex(std::string_view text) {
   Bytes bytes;

@@ -42,6 +42,8 @@ inline std::string read_text(const std::filesystem::path& path) {
 }  // namespace blockmap::testing
 
 // Declares `variable` as the path of `relative` under ../shared/data, or skips the test.
+// (`variable` is the name declared, which cannot be in parentheses.)
+// NOLINTBEGIN(bugprone-macro-parentheses)
 #define BLOCKMAP_SHARED_DATA_OR_SKIP(variable, relative)                  \
   const std::optional<std::filesystem::path> variable##_or =              \
       ::blockmap::testing::shared_data(relative);                         \
@@ -49,3 +51,4 @@ inline std::string read_text(const std::filesystem::path& path) {
     GTEST_SKIP() << "../shared/data/" << (relative) << " is not present"; \
   }                                                                       \
   const std::filesystem::path& variable = *variable##_or
+// NOLINTEND(bugprone-macro-parentheses)

@@ -57,7 +57,7 @@ inline std::filesystem::path simulated_logs(const std::vector<std::string>& args
   std::error_code error;
   const auto built = fs::last_write_time("/proc/self/exe", error).time_since_epoch();
   name += "_" + std::to_string(std::chrono::duration_cast<std::chrono::seconds>(built).count());
-  const fs::path folder = fs::path(BLOCKMAP_TEST_CACHE_DIR) / name;
+  fs::path folder = fs::path(BLOCKMAP_TEST_CACHE_DIR) / name;  // returned: not const, moved
   if (fs::exists(folder / "truth.json")) {
     return folder;
   }

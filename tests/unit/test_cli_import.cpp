@@ -20,6 +20,8 @@
 #include "blockmap/planes/polygon.hpp"
 #include "cli.hpp"
 #include "cli_runner.hpp"
+#include "long_test.hpp"
+#include "scratch.hpp"
 
 namespace blockmap::cli {
 namespace {
@@ -32,9 +34,7 @@ using testing::run_cli;
 
 const char* const kOrigin = "36.8290,-2.4040,60";
 
-fs::path scratch(const std::string& name) {
-  return fs::temp_directory_path() / ("blockmap_import_" + name + "_" + std::to_string(::getpid()));
-}
+using blockmap::testing::scratch;
 
 // A 40 m x 25 m loop with rounded corners at 2 m/s, as an MRPT odometry export (85 Hz).
 std::string loop_export(double duration_s) {
@@ -247,6 +247,7 @@ TEST(ImportCommand, ScansOfAnotherLaserAreOneClearLine) {
 }
 
 TEST(ImportCommand, TheRealUalLoopRunsThroughTheFilter) {
+  BLOCKMAP_LONG_TEST();
   const fs::path odometry = fs::path(BLOCKMAP_PROJECT_DIR) /
                             "../shared/data/real/ual-2dlaser-odo/derived_txt/"
                             "ual_dataset_2014_05_23_2dlaser_odo_ODOMETRY.txt";
@@ -291,6 +292,7 @@ Result import_ual_scans(const fs::path& logs) {
 // laser's own sheet of returns as none. Still short of what a user wants (docs/mapper.md): kerbs,
 // cars, hedges and trunks are short walls too, and some facades stay in two or three pieces.
 TEST(ImportCommand, TheRealUalScansMapWallsAsVerticalPlanes) {
+  BLOCKMAP_LONG_TEST();
   const fs::path folder = scratch("ual_scans");
   if (!ual_scans_present()) {
     GTEST_SKIP() << "the shared data collection is not beside the checkout";
@@ -363,6 +365,7 @@ TEST(ImportCommand, TheRealUalScansMapWallsAsVerticalPlanes) {
 // once around it; where its laser saw through (config/ual_loop.toml's [free_space]) rings the
 // block, whose steps and tree-hidden ends no wall shows (docs/buildings.md).
 TEST(ImportCommand, TheRealUalLoopsBlockIsOneClosedFootprint) {
+  BLOCKMAP_LONG_TEST();
   const fs::path folder = scratch("ual_block");
   if (!ual_scans_present()) {
     GTEST_SKIP() << "the shared data collection is not beside the checkout";

@@ -15,6 +15,8 @@
 
 #include "cli.hpp"
 #include "cli_runner.hpp"
+#include "long_test.hpp"
+#include "scratch.hpp"
 
 namespace blockmap::cli {
 namespace {
@@ -45,9 +47,7 @@ std::vector<Row> trajectory_rows(const std::string& text, std::string& header) {
 }
 
 // A folder of this process's own in the temporary directory.
-fs::path scratch(const std::string& name) {
-  return fs::temp_directory_path() / ("blockmap_" + name + "_" + std::to_string(::getpid()));
-}
+using blockmap::testing::scratch;
 
 // The true pose at t (the truth is at 100 Hz: the nearest sample).
 const nlohmann::json& truth_at(const nlohmann::json& trajectory, double t_s) {
@@ -75,6 +75,7 @@ class ReplayCommand : public ::testing::Test {
 };
 
 TEST_F(ReplayCommand, WritesTheSmoothedTrajectoryCloserToTheTruthThanGps) {
+  BLOCKMAP_LONG_TEST();
   const fs::path out = scratch("replay_out");
   // 2,000 particles: well inside the bounds. The localizer alone: the planes of such a replay
   // are ReplayMapping's.
@@ -143,6 +144,7 @@ TEST_F(ReplayCommand, WritesTheSmoothedTrajectoryCloserToTheTruthThanGps) {
 }
 
 TEST_F(ReplayCommand, WithoutOutWritesTheTrajectoryToStdout) {
+  BLOCKMAP_LONG_TEST();
   const Result result = run_cli({"replay", folder_.string(), "--particles", "300"});
   ASSERT_EQ(result.status, kExitOk) << result.err;
   EXPECT_EQ(result.out.rfind("t_s,x_m,y_m,z_m,roll_rad,pitch_rad,yaw_rad\n", 0), 0u);
@@ -168,6 +170,7 @@ class ReplayMapping : public ::testing::Test {
 };
 
 TEST_F(ReplayMapping, MapsThePlanesWhenTheLogsHaveLasers) {
+  BLOCKMAP_LONG_TEST();
   const fs::path out = scratch("replay_planes");
   const Result result =
       run_cli({"replay", folder_.string(), "--out", out.string(), "--particles", "500", "--cloud"});

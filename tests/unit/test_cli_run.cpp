@@ -15,6 +15,8 @@
 
 #include "cli.hpp"
 #include "cli_runner.hpp"
+#include "long_test.hpp"
+#include "scratch.hpp"
 
 namespace blockmap::cli {
 namespace {
@@ -23,9 +25,7 @@ namespace fs = std::filesystem;
 using testing::read_file;
 using testing::run_cli;
 
-fs::path scratch(const std::string& name) {
-  return fs::temp_directory_path() / ("blockmap_run_" + name + "_" + std::to_string(::getpid()));
-}
+using blockmap::testing::scratch;
 
 TEST(RunCommand, MapsTheSimulatedBlockAndWritesEveryOutput) {
   const fs::path out = scratch("out");
@@ -105,6 +105,7 @@ TEST(RunCommand, BadOptionsGetOneClearLine) {
 // Scans drawn 4 s late with the smoothed path: every scan still projected, the last 4 s at
 // the end of the input.
 TEST(RunCommand, APoseLagDrawsEveryScanLate) {
+  BLOCKMAP_LONG_TEST();
   const fs::path out = scratch("lag");
   fs::create_directories(out);
   const auto projected = [](const std::string& err) {

@@ -21,6 +21,8 @@
 #include "cli.hpp"
 #include "cli_runner.hpp"
 #include "daemon_walls.hpp"
+#include "long_test.hpp"
+#include "scratch.hpp"
 
 namespace blockmap::cli {
 namespace {
@@ -32,9 +34,7 @@ using testing::Wall;
 using testing::walls_of;
 using testing::within_spread;
 
-fs::path scratch(const std::string& name) {
-  return fs::temp_directory_path() / ("blockmap_daemon_" + name + "_" + std::to_string(::getpid()));
-}
+using blockmap::testing::scratch;
 
 fs::path write_config(const std::string& name, const std::string& text) {
   fs::path path = scratch(name + ".toml");
@@ -50,6 +50,7 @@ std::string without_seconds(const std::string& planes_json) {
 }
 
 TEST(Daemon, TheSimulatedRobotThroughTheThreadsMapsWhatTheSingleThreadedRunMaps) {
+  BLOCKMAP_LONG_TEST();
   const fs::path threaded = scratch("threaded");
   const fs::path single = scratch("single");
   const fs::path config = write_config("sim", "[devices]\nrobot = \"sim:usc_block\"\n");
@@ -92,6 +93,7 @@ TEST(Daemon, TheSimulatedRobotThroughTheThreadsMapsWhatTheSingleThreadedRunMaps)
 }
 
 TEST(Daemon, RecordedLogsThroughTheThreadsMapWhatReplayMaps) {
+  BLOCKMAP_LONG_TEST();
   const fs::path logs = scratch("logs");
   const fs::path threaded = scratch("replay_threaded");
   const fs::path single = scratch("replay_single");

@@ -35,6 +35,7 @@
 #include "daemon/log_player.hpp"
 #include "daemon/snapshot.hpp"
 #include "daemon_walls.hpp"
+#include "long_test.hpp"
 
 namespace blockmap::cli {
 namespace {
@@ -161,6 +162,7 @@ const nlohmann::json* device_in(const nlohmann::json& record, const std::string&
 }
 
 TEST(DaemonFaults, UnpluggedCorruptedSilentAndFloodedDevicesAreCountedAndNothingIsLost) {
+  BLOCKMAP_LONG_TEST();
   std::string err_text;
   const fs::path logs = sixteen_seconds(err_text);
   ASSERT_FALSE(logs.empty()) << err_text;
@@ -330,6 +332,7 @@ std::size_t lines_in(const fs::path& path) {
 }
 
 TEST(DaemonFaults, KilledMidRunItResumesFromItsSnapshotAndLosesNoPlane) {
+  BLOCKMAP_LONG_TEST();
   std::string err_text;
   const fs::path logs = sixteen_seconds(err_text);
   ASSERT_FALSE(logs.empty()) << err_text;

@@ -11,11 +11,12 @@
 #include <string>
 
 #include "blockmap/hal/linux/gpiod_line.hpp"
+#include "test_units.hpp"
 
 namespace blockmap::hal::linux_backend {
 namespace {
 
-constexpr TimestampNs kMs = 1'000'000;
+using blockmap::testing::kMs;
 constexpr std::uint32_t kLedLine = 5;          // free on the virt machine's PL061
 constexpr std::uint32_t kPowerButtonLine = 3;  // QEMU's gpio-key: high for 100 ms per press
 

@@ -4,11 +4,12 @@
 #include <gtest/gtest.h>
 
 #include "blockmap/hal/gps_observations.hpp"
+#include "test_units.hpp"
 
 namespace blockmap::hal {
 namespace {
 
-constexpr TimestampNs kMs = 1'000'000;
+using blockmap::testing::kMs;
 
 // A valid fix measured at `utc_ms_of_day`, received at `received_ns` on the robot's clock.
 msg::GpsFix fix_at(std::int32_t utc_ms_of_day, TimestampNs received_ns) {

@@ -15,11 +15,12 @@
 #include "blockmap/core/spsc_queue.hpp"
 #include "blockmap/hal/devices/laser_scanners.hpp"
 #include "blockmap/hal/linux/libusb_bulk.hpp"
+#include "test_units.hpp"
 
 namespace blockmap::hal::linux_backend {
 namespace {
 
-constexpr TimestampNs kMs = 1'000'000;
+using blockmap::testing::kMs;
 constexpr std::uint16_t kSick = 0x19a2;
 constexpr std::uint16_t kTim = 0x5001;
 

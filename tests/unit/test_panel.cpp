@@ -21,6 +21,8 @@
 #include "cli.hpp"
 #include "cli_runner.hpp"
 #include "daemon/daemon.hpp"
+#include "long_test.hpp"
+#include "scratch.hpp"
 
 namespace blockmap::cli::daemon {
 namespace {
@@ -247,9 +249,7 @@ TEST(Panel, ThePpsLinesRisingEdgesReachThePipelineWithTheirStamps) {
   panel.stop();
 }
 
-fs::path scratch(const std::string& name) {
-  return fs::temp_directory_path() / ("blockmap_panel_" + name + "_" + std::to_string(::getpid()));
-}
+using blockmap::testing::scratch;
 
 struct SwitchRun {
   int status = 0;
@@ -287,6 +287,7 @@ SwitchRun run_with_switch(bool level, const fs::path& out) {
 }
 
 TEST(Panel, WithTheSwitchOffTheDaemonTracksThePoseButMapsNothing) {
+  BLOCKMAP_LONG_TEST();
   const fs::path on_dir = scratch("on");
   const fs::path off_dir = scratch("off");
   const SwitchRun on = run_with_switch(true, on_dir);

@@ -23,11 +23,12 @@
 #include "blockmap/hal/devices/laser_scanners.hpp"
 #include "blockmap/hal/linux/serial_port.hpp"
 #include "blockmap/hal/protocol/sick_lms2xx.hpp"
+#include "test_units.hpp"
 
 namespace blockmap::hal::linux_backend {
 namespace {
 
-constexpr TimestampNs kMs = 1'000'000;
+using blockmap::testing::kMs;
 
 // A pseudo-terminal pair: the port opens the slave's path; the test talks through the master.
 class PseudoTerminal {

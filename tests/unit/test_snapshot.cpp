@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "scratch.hpp"
+
 namespace blockmap::cli::daemon {
 namespace {
 
@@ -34,16 +36,16 @@ map::SavedPlane plane(std::uint32_t id, double d_m, std::uint8_t vertices) {
   return saved;
 }
 
-fs::path scratch(const std::string& name) {
-  fs::path dir =
-      fs::temp_directory_path() / ("blockmap_snapshot_" + name + "_" + std::to_string(::getpid()));
+// An empty folder of the test's own.
+fs::path empty_folder(const std::string& name) {
+  fs::path dir = blockmap::testing::scratch("snapshot_" + name);
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;
 }
 
 TEST(Snapshot, WhatIsWrittenIsReadBackTheSame) {
-  const fs::path dir = scratch("same");
+  const fs::path dir = empty_folder("same");
   SnapshotWriter writer(dir, 8);
   writer.planes()[0] = plane(7, 12.5, 4);
   writer.planes()[1] = plane(9, -3.25, 32);
@@ -98,7 +100,7 @@ TEST(Snapshot, ADamagedOrTornFileIsRefusedNamingIt) {
     EXPECT_NE(decode_snapshot(flipped, out), "") << "byte " << i;
     EXPECT_NE(decode_snapshot(std::span(bytes).first(i), out), "") << "cut at " << i;
   }
-  const fs::path dir = scratch("damaged");
+  const fs::path dir = empty_folder("damaged");
   bytes[100] ^= 0xFFU;
   std::ofstream(dir / "snapshot.bin", std::ios::binary)
       .write(reinterpret_cast<const char*>(bytes.data()),
@@ -111,7 +113,7 @@ TEST(Snapshot, ADamagedOrTornFileIsRefusedNamingIt) {
 }
 
 TEST(Snapshot, ACrashBetweenTheRenamesLeavesTheOneBefore) {
-  const fs::path dir = scratch("renames");
+  const fs::path dir = empty_folder("renames");
   SnapshotWriter writer(dir, 2);
   writer.planes()[0] = plane(3, 1.0, 3);
   SnapshotHeader header;

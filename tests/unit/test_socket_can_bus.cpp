@@ -14,11 +14,12 @@
 #include "blockmap/hal/devices/segway_base.hpp"
 #include "blockmap/hal/linux/socket_can_bus.hpp"
 #include "blockmap/hal/protocol/segway_rmp.hpp"
+#include "test_units.hpp"
 
 namespace blockmap::hal::linux_backend {
 namespace {
 
-constexpr TimestampNs kMs = 1'000'000;
+using blockmap::testing::kMs;
 
 // Whether this kernel has SocketCAN and a vcan0 to use.
 bool have_vcan0() {
