@@ -173,6 +173,18 @@ void MappingSession::report(std::ostream& err, double data_s) const {
         static_cast<unsigned long long>(m.too_far), static_cast<unsigned long long>(m.resets));
     err << text;
   }
+  if (mapper_.config().rigid_path) {
+    const localize::PathSmootherCounters& p = mapper_.rigid_path().counters();
+    std::snprintf(
+        text, sizeof text,
+        "rigid path: %zu keyframes (%llu thinnings), %llu fixes, %llu solves; %llu "
+        "final planes moved by it, %llu fixes dropped waiting\n",
+        mapper_.rigid_path().keyframe_count(), static_cast<unsigned long long>(p.thinnings),
+        static_cast<unsigned long long>(p.fixes), static_cast<unsigned long long>(p.solves),
+        static_cast<unsigned long long>(c.planes_moved),
+        static_cast<unsigned long long>(c.rigid_path_fixes_dropped));
+    err << text;
+  }
   if (c.peak_samples_without_room > 0) {
     std::snprintf(text, sizeof text,
                   "mapper: the detector had no room for up to %zu of the window's samples at "

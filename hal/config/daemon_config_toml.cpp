@@ -107,17 +107,14 @@ void read_devices(TableReader& t, DaemonConfig& c) {
 }
 
 void read_daemon(TableReader& t, DaemonConfig& c) {
-  c.silent_after_s = t.positive("silent_after_s", t.number_or("silent_after_s", c.silent_after_s));
-  c.reconnect_first_s =
-      t.positive("reconnect_first_s", t.number_or("reconnect_first_s", c.reconnect_first_s));
-  c.reconnect_max_s =
-      t.positive("reconnect_max_s", t.number_or("reconnect_max_s", c.reconnect_max_s));
+  c.silent_after_s = t.positive_or("silent_after_s", c.silent_after_s);
+  c.reconnect_first_s = t.positive_or("reconnect_first_s", c.reconnect_first_s);
+  c.reconnect_max_s = t.positive_or("reconnect_max_s", c.reconnect_max_s);
   if (c.reconnect_max_s < c.reconnect_first_s) {
     t.fail("reconnect_max_s", "must be at least reconnect_first_s");
   }
-  c.health_every_s = t.positive("health_every_s", t.number_or("health_every_s", c.health_every_s));
-  c.snapshot_every_s =
-      t.non_negative("snapshot_every_s", t.number_or("snapshot_every_s", c.snapshot_every_s));
+  c.health_every_s = t.positive_or("health_every_s", c.health_every_s);
+  c.snapshot_every_s = t.non_negative_or("snapshot_every_s", c.snapshot_every_s);
   c.realtime_priority = static_cast<int>(t.in_range(
       "realtime_priority",
       static_cast<double>(t.integer_or("realtime_priority", c.realtime_priority)), 0.0, 99.0));

@@ -306,6 +306,14 @@ double TableReader::non_negative(std::string_view key, double value) const {
   return value;
 }
 
+double TableReader::positive_or(std::string_view key, double fallback) {
+  return positive(key, number_or(key, fallback));
+}
+
+double TableReader::non_negative_or(std::string_view key, double fallback) {
+  return non_negative(key, number_or(key, fallback));
+}
+
 double TableReader::in_range(std::string_view key, double value, double low, double high) const {
   if (!(value >= low && value <= high)) {
     std::ostringstream what;

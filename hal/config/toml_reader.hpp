@@ -71,6 +71,9 @@ class TableReader {
   [[nodiscard]] double positive(std::string_view key, double value) const;
   [[nodiscard]] double non_negative(std::string_view key, double value) const;
   [[nodiscard]] double in_range(std::string_view key, double value, double low, double high) const;
+  // number_or checked the same way: the key's value, or the fallback, must be > 0 (>= 0).
+  [[nodiscard]] double positive_or(std::string_view key, double fallback);
+  [[nodiscard]] double non_negative_or(std::string_view key, double fallback);
 
   // Throws for the first key that was never read.
   void finish() const;

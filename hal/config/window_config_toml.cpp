@@ -11,8 +11,7 @@ pipeline::MapperConfig parse_window_config(std::string_view text, std::string_vi
   pipeline::MapperConfig c = base;
   if (auto table = root.table("window")) {
     TableReader& t = *table;
-    c.window.tile_size_m =
-        t.positive("tile_size_m", t.number_or("tile_size_m", c.window.tile_size_m));
+    c.window.tile_size_m = t.positive_or("tile_size_m", c.window.tile_size_m);
     const std::int64_t tiles = t.integer_or("tiles_across", c.window.tiles_across);
     if (tiles < 3 || tiles > 255 || tiles % 2 == 0) {
       t.fail("tiles_across", "must be odd, from 3 to 255 (the robot's tile is the middle one)");
@@ -29,17 +28,14 @@ pipeline::MapperConfig parse_window_config(std::string_view text, std::string_vi
   }
   if (auto table = root.table("projection")) {
     TableReader& t = *table;
-    c.projection.min_range_m =
-        t.non_negative("min_range_m", t.number_or("min_range_m", c.projection.min_range_m));
-    c.projection.max_range_m =
-        t.positive("max_range_m", t.number_or("max_range_m", c.projection.max_range_m));
+    c.projection.min_range_m = t.non_negative_or("min_range_m", c.projection.min_range_m);
+    c.projection.max_range_m = t.positive_or("max_range_m", c.projection.max_range_m);
     if (!(c.projection.max_range_m > c.projection.min_range_m)) {
       t.fail("max_range_m", "must be more than min_range_m");
     }
-    c.projection.far_ground_range_m = t.non_negative(
-        "far_ground_range_m", t.number_or("far_ground_range_m", c.projection.far_ground_range_m));
-    c.projection.ground_band_m =
-        t.non_negative("ground_band_m", t.number_or("ground_band_m", c.projection.ground_band_m));
+    c.projection.far_ground_range_m =
+        t.non_negative_or("far_ground_range_m", c.projection.far_ground_range_m);
+    c.projection.ground_band_m = t.non_negative_or("ground_band_m", c.projection.ground_band_m);
     t.finish();
   }
   if (auto table = root.table("free_space")) {
@@ -50,12 +46,31 @@ pipeline::MapperConfig parse_window_config(std::string_view text, std::string_vi
       t.fail("tiles_across", "must be from 0 (off) to 64 (tiles of 32 cells)");
     }
     c.free_space.tiles_across = static_cast<std::uint32_t>(tiles);
-    c.free_space.cell_size_m =
-        t.positive("cell_size_m", t.number_or("cell_size_m", c.free_space.cell_size_m));
-    c.free_space.stop_short_m =
-        t.non_negative("stop_short_m", t.number_or("stop_short_m", c.free_space.stop_short_m));
+    c.free_space.cell_size_m = t.positive_or("cell_size_m", c.free_space.cell_size_m);
+    c.free_space.stop_short_m = t.non_negative_or("stop_short_m", c.free_space.stop_short_m);
     t.finish();
     if (const std::string problem = map::validate(c.free_space); !problem.empty()) {
+      throw ConfigError(std::string(source) + ": " + problem);
+    }
+  }
+  if (auto table = root.table("rigid_path")) {
+    TableReader& t = *table;
+    // The whole run's path at once, and the final planes moved with it (docs/localize.md,
+    // The whole path at once).
+    c.rigid_path = t.boolean_or("enabled", c.rigid_path);
+    localize::PathSmootherConfig& r = c.path;
+    r.max_keyframes = t.capacity_or("max_keyframes", r.max_keyframes);
+    r.keyframe_spacing_m = t.positive_or("keyframe_spacing_m", r.keyframe_spacing_m);
+    r.along_sigma_per_sqrt_m = t.positive_or("along_sigma_per_sqrt_m", r.along_sigma_per_sqrt_m);
+    r.across_sigma_per_sqrt_m = t.positive_or("across_sigma_per_sqrt_m", r.across_sigma_per_sqrt_m);
+    r.yaw_sigma_per_sqrt_m = t.positive_or("yaw_sigma_per_sqrt_m", r.yaw_sigma_per_sqrt_m);
+    r.yaw_sigma_per_sqrt_s = t.positive_or("yaw_sigma_per_sqrt_s", r.yaw_sigma_per_sqrt_s);
+    r.bias_sigma_m = t.positive_or("bias_sigma_m", r.bias_sigma_m);
+    r.bias_time_s = t.positive_or("bias_time_s", r.bias_time_s);
+    r.fix_sigma_m = t.positive_or("fix_sigma_m", r.fix_sigma_m);
+    r.iterations = static_cast<std::uint32_t>(t.capacity_or("iterations", r.iterations));
+    t.finish();
+    if (const std::string problem = localize::validate(r); !problem.empty()) {
       throw ConfigError(std::string(source) + ": " + problem);
     }
   }
@@ -65,34 +80,28 @@ pipeline::MapperConfig parse_window_config(std::string_view text, std::string_vi
     // over seconds, where GPS alone bends the walls (docs/localize.md, Scan matching).
     localize::ScanMatchConfig& m = c.scan_matching;
     m.enabled = t.boolean_or("enabled", m.enabled);
-    m.cell_m = t.positive("cell_m", t.number_or("cell_m", m.cell_m));
+    m.cell_m = t.positive_or("cell_m", m.cell_m);
     m.cells_across = static_cast<std::uint32_t>(t.capacity_or("cells_across", m.cells_across));
     m.levels = static_cast<std::uint32_t>(t.capacity_or("levels", m.levels));
     m.iterations = static_cast<std::uint32_t>(t.capacity_or("iterations", m.iterations));
     m.min_height_m = t.number_or("min_height_m", m.min_height_m);
     m.max_height_m = t.number_or("max_height_m", m.max_height_m);
-    m.point_spacing_m =
-        t.non_negative("point_spacing_m", t.number_or("point_spacing_m", m.point_spacing_m));
-    m.max_match_range_m =
-        t.positive("max_match_range_m", t.number_or("max_match_range_m", m.max_match_range_m));
-    m.map_update_m = t.non_negative("map_update_m", t.number_or("map_update_m", m.map_update_m));
-    m.map_update_rad =
-        t.non_negative("map_update_rad", t.number_or("map_update_rad", m.map_update_rad));
-    m.join_gap_m = t.non_negative("join_gap_m", t.number_or("join_gap_m", m.join_gap_m));
-    m.normal_neighbour_m =
-        t.positive("normal_neighbour_m", t.number_or("normal_neighbour_m", m.normal_neighbour_m));
+    m.point_spacing_m = t.non_negative_or("point_spacing_m", m.point_spacing_m);
+    m.max_match_range_m = t.positive_or("max_match_range_m", m.max_match_range_m);
+    m.map_update_m = t.non_negative_or("map_update_m", m.map_update_m);
+    m.map_update_rad = t.non_negative_or("map_update_rad", m.map_update_rad);
+    m.join_gap_m = t.non_negative_or("join_gap_m", m.join_gap_m);
+    m.normal_neighbour_m = t.positive_or("normal_neighbour_m", m.normal_neighbour_m);
     m.max_points = static_cast<std::uint32_t>(t.capacity_or("max_points", m.max_points));
     m.min_points = static_cast<std::uint32_t>(t.capacity_or("min_points", m.min_points));
     m.min_overlap = t.in_range("min_overlap", t.number_or("min_overlap", m.min_overlap), 0.0, 1.0);
-    m.max_step_m = t.positive("max_step_m", t.number_or("max_step_m", m.max_step_m));
-    m.max_step_rad = t.positive("max_step_rad", t.number_or("max_step_rad", m.max_step_rad));
-    m.anchor_time_s =
-        t.non_negative("anchor_time_s", t.number_or("anchor_time_s", m.anchor_time_s));
-    m.anchor_heading_lever_m = t.non_negative(
-        "anchor_heading_lever_m", t.number_or("anchor_heading_lever_m", m.anchor_heading_lever_m));
-    m.prior_along_ratio =
-        t.positive("prior_along_ratio", t.number_or("prior_along_ratio", m.prior_along_ratio));
-    m.prior_weight = t.positive("prior_weight", t.number_or("prior_weight", m.prior_weight));
+    m.max_step_m = t.positive_or("max_step_m", m.max_step_m);
+    m.max_step_rad = t.positive_or("max_step_rad", m.max_step_rad);
+    m.anchor_time_s = t.non_negative_or("anchor_time_s", m.anchor_time_s);
+    m.anchor_heading_lever_m =
+        t.non_negative_or("anchor_heading_lever_m", m.anchor_heading_lever_m);
+    m.prior_along_ratio = t.positive_or("prior_along_ratio", m.prior_along_ratio);
+    m.prior_weight = t.positive_or("prior_weight", m.prior_weight);
     t.finish();
     if (const std::string problem = localize::validate(m); !problem.empty()) {
       throw ConfigError(std::string(source) + ": " + problem);
@@ -102,12 +111,10 @@ pipeline::MapperConfig parse_window_config(std::string_view text, std::string_vi
     TableReader& t = *table;
     // Seconds of scan time between two plane extractions: the plane list's update period,
     // and most of the mapper's cost (docs/mapper.md, Speed).
-    c.extract_every_s =
-        t.positive("extract_every_s", t.number_or("extract_every_s", c.extract_every_s));
+    c.extract_every_s = t.positive_or("extract_every_s", c.extract_every_s);
     // Scans are drawn this many seconds late, with the particle filter's smoothed path
     // instead of its estimate of the moment: straight walls, a plane list as late.
-    c.localizer.map_pose_lag_s =
-        t.non_negative("pose_lag_s", t.number_or("pose_lag_s", c.localizer.map_pose_lag_s));
+    c.localizer.map_pose_lag_s = t.non_negative_or("pose_lag_s", c.localizer.map_pose_lag_s);
     if (const std::string problem = localize::validate(c.localizer); !problem.empty()) {
       t.fail("pose_lag_s", problem);
     }

@@ -55,12 +55,10 @@ BaseSpec parse_base(TableReader& root) {
   base.track_m = t.in_range("track_m", t.number_or("track_m", base.track_m), 0.1, 3.0);
   base.wheel_radius_m =
       t.in_range("wheel_radius_m", t.number_or("wheel_radius_m", base.wheel_radius_m), 0.05, 1.0);
-  base.max_accel_mps2 =
-      t.positive("max_accel_mps2", t.number_or("max_accel_mps2", base.max_accel_mps2));
-  base.max_decel_mps2 =
-      t.positive("max_decel_mps2", t.number_or("max_decel_mps2", base.max_decel_mps2));
-  base.max_lateral_accel_mps2 = t.positive(
-      "max_lateral_accel_mps2", t.number_or("max_lateral_accel_mps2", base.max_lateral_accel_mps2));
+  base.max_accel_mps2 = t.positive_or("max_accel_mps2", base.max_accel_mps2);
+  base.max_decel_mps2 = t.positive_or("max_decel_mps2", base.max_decel_mps2);
+  base.max_lateral_accel_mps2 =
+      t.positive_or("max_lateral_accel_mps2", base.max_lateral_accel_mps2);
   base.max_yaw_rate_radps = t.positive(
       "max_yaw_rate_degps", degrees_or(t, "max_yaw_rate_degps", base.max_yaw_rate_radps));
   base.lookahead_m =
@@ -73,8 +71,7 @@ BaseSpec parse_base(TableReader& root) {
   base.pitch_damping_ratio =
       t.in_range("pitch_damping_ratio",
                  t.number_or("pitch_damping_ratio", base.pitch_damping_ratio), 0.05, 5.0);
-  base.bump_pitch_gain =
-      t.non_negative("bump_pitch_gain", t.number_or("bump_pitch_gain", base.bump_pitch_gain));
+  base.bump_pitch_gain = t.non_negative_or("bump_pitch_gain", base.bump_pitch_gain);
   base.left_scale_error = t.in_range(
       "left_scale_error", t.number_or("left_scale_error", base.left_scale_error), -0.2, 0.2);
   base.right_scale_error = t.in_range(
@@ -215,20 +212,16 @@ GpsSpec parse_gps(TableReader& root) {
   if (gps.talker.size() != 2) {
     t.fail("talker", "must be two characters (GP, GN, ...)");
   }
-  gps.horizontal_error_rms_m = t.non_negative(
-      "horizontal_error_rms_m", t.number_or("horizontal_error_rms_m", gps.horizontal_error_rms_m));
-  gps.multipath_error_rms_m = t.non_negative(
-      "multipath_error_rms_m", t.number_or("multipath_error_rms_m", gps.multipath_error_rms_m));
+  gps.horizontal_error_rms_m =
+      t.non_negative_or("horizontal_error_rms_m", gps.horizontal_error_rms_m);
+  gps.multipath_error_rms_m = t.non_negative_or("multipath_error_rms_m", gps.multipath_error_rms_m);
   if (gps.multipath_error_rms_m > gps.horizontal_error_rms_m) {
     t.fail("multipath_error_rms_m", "is part of horizontal_error_rms_m: it cannot exceed it");
   }
-  gps.vertical_error_rms_m = t.non_negative(
-      "vertical_error_rms_m", t.number_or("vertical_error_rms_m", gps.vertical_error_rms_m));
-  gps.correlation_time_s =
-      t.positive("correlation_time_s", t.number_or("correlation_time_s", gps.correlation_time_s));
+  gps.vertical_error_rms_m = t.non_negative_or("vertical_error_rms_m", gps.vertical_error_rms_m);
+  gps.correlation_time_s = t.positive_or("correlation_time_s", gps.correlation_time_s);
   gps.multipath_correlation_s =
-      t.positive("multipath_correlation_s",
-                 t.number_or("multipath_correlation_s", gps.multipath_correlation_s));
+      t.positive_or("multipath_correlation_s", gps.multipath_correlation_s);
   gps.latency_s = t.in_range("latency_s", t.number_or("latency_s", gps.latency_s), 0.0, 1.0);
   gps.hdop_open_sky =
       t.in_range("hdop_open_sky", t.number_or("hdop_open_sky", gps.hdop_open_sky), 0.5, 20.0);

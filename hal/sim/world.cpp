@@ -100,35 +100,30 @@ Building parse_building(TableReader& table, int default_id) {
 
 Tree parse_tree_parameters(TableReader& table) {
   Tree tree;
-  tree.trunk_radius_m =
-      table.positive("trunk_radius_m", table.number_or("trunk_radius_m", tree.trunk_radius_m));
-  tree.trunk_height_m =
-      table.positive("trunk_height_m", table.number_or("trunk_height_m", tree.trunk_height_m));
-  tree.canopy_radius_m = table.non_negative(
-      "canopy_radius_m", table.number_or("canopy_radius_m", tree.canopy_radius_m));
+  tree.trunk_radius_m = table.positive_or("trunk_radius_m", tree.trunk_radius_m);
+  tree.trunk_height_m = table.positive_or("trunk_height_m", tree.trunk_height_m);
+  tree.canopy_radius_m = table.non_negative_or("canopy_radius_m", tree.canopy_radius_m);
   tree.canopy_centre_height_m =
-      table.positive("canopy_centre_height_m",
-                     table.number_or("canopy_centre_height_m", tree.canopy_centre_height_m));
-  tree.canopy_density_per_m = table.non_negative(
-      "canopy_density_per_m", table.number_or("canopy_density_per_m", tree.canopy_density_per_m));
+      table.positive_or("canopy_centre_height_m", tree.canopy_centre_height_m);
+  tree.canopy_density_per_m =
+      table.non_negative_or("canopy_density_per_m", tree.canopy_density_per_m);
   return tree;
 }
 
 Bush parse_bush_parameters(TableReader& table) {
   Bush bush;
-  bush.radius_m = table.positive("radius_m", table.number_or("radius_m", bush.radius_m));
-  bush.height_m = table.positive("height_m", table.number_or("height_m", bush.height_m));
-  bush.density_per_m =
-      table.non_negative("density_per_m", table.number_or("density_per_m", bush.density_per_m));
+  bush.radius_m = table.positive_or("radius_m", bush.radius_m);
+  bush.height_m = table.positive_or("height_m", bush.height_m);
+  bush.density_per_m = table.non_negative_or("density_per_m", bush.density_per_m);
   return bush;
 }
 
 Car parse_car_parameters(TableReader& table) {
   Car car;
   car.yaw_rad = table.number_or("yaw_deg", 0.0) * kRadPerDeg;
-  car.length_m = table.positive("length_m", table.number_or("length_m", car.length_m));
-  car.width_m = table.positive("width_m", table.number_or("width_m", car.width_m));
-  car.height_m = table.positive("height_m", table.number_or("height_m", car.height_m));
+  car.length_m = table.positive_or("length_m", car.length_m);
+  car.width_m = table.positive_or("width_m", car.width_m);
+  car.height_m = table.positive_or("height_m", car.height_m);
   return car;
 }
 
@@ -187,10 +182,9 @@ Ground parse_ground(TableReader& world) {
   if (!table) {
     return ground;
   }
-  ground.roughness_m = table->non_negative("roughness_m", table->number_or("roughness_m", 0.0));
+  ground.roughness_m = table->non_negative_or("roughness_m", 0.0);
   ground.roughness_wavelength_m =
-      table->positive("roughness_wavelength_m",
-                      table->number_or("roughness_wavelength_m", ground.roughness_wavelength_m));
+      table->positive_or("roughness_wavelength_m", ground.roughness_wavelength_m);
   ground.cell_m = table->in_range("cell_m", table->number_or("cell_m", ground.cell_m), 0.02, 1.0);
   for (TableReader& bump : table->tables("bumps")) {
     Bump b;
@@ -208,7 +202,7 @@ Ground parse_ground(TableReader& world) {
       kerb.fail("to_m", "must be at least 0.1 m from from_m");
     }
     k.height_m = kerb.number("height_m");
-    k.width_m = kerb.positive("width_m", kerb.number_or("width_m", k.width_m));
+    k.width_m = kerb.positive_or("width_m", k.width_m);
     ground.kerbs.push_back(k);
     kerb.finish();
   }
@@ -299,8 +293,8 @@ World parse_world(std::string_view toml_text, std::string_view source_name) {
     person.to_m = table.vec2("to_m");
     person.speed_mps =
         table.in_range("speed_mps", table.number_or("speed_mps", person.speed_mps), 0.0, 5.0);
-    person.radius_m = table.positive("radius_m", table.number_or("radius_m", person.radius_m));
-    person.height_m = table.positive("height_m", table.number_or("height_m", person.height_m));
+    person.radius_m = table.positive_or("radius_m", person.radius_m);
+    person.height_m = table.positive_or("height_m", person.height_m);
     world.people.push_back(person);
     table.finish();
   }

@@ -97,7 +97,8 @@ std::size_t PathSmoother::memory_bytes() const noexcept {
   return keyframes_.size_bytes() + blocks_.size_bytes();
 }
 
-void PathSmoother::add(const Pose2& odometry, const std::optional<Eigen::Vector2d>& fix_m,
+void PathSmoother::add(const Pose2& odometry, const Pose2& drawn,
+                       const std::optional<Eigen::Vector2d>& fix_m,
                        double fix_sigma_scale) noexcept {
   if (count_ > 0 && odometry.stamp_ns < keyframes_[count_ - 1].odometry.stamp_ns) {
     ++counters_.refused;
@@ -107,7 +108,7 @@ void PathSmoother::add(const Pose2& odometry, const std::optional<Eigen::Vector2
       count_ > 0 && odometry.stamp_ns == keyframes_[count_ - 1].odometry.stamp_ns;
   if (fix_m.has_value()) {
     if (!same_time) {
-      append(odometry);
+      append(odometry, drawn);
     }
     Keyframe& keyframe = keyframes_[count_ - 1];
     if (counters_.fixes == 0) {
@@ -130,26 +131,28 @@ void PathSmoother::add(const Pose2& odometry, const std::optional<Eigen::Vector2
     return;
   }
   if (count_ == 0) {
-    append(odometry);
+    append(odometry, drawn);
     return;
   }
   const Pose2& last = keyframes_[count_ - 1].odometry;
   if (std::hypot(odometry.x_m - last.x_m, odometry.y_m - last.y_m) >= config_.keyframe_spacing_m) {
-    append(odometry);
+    append(odometry, drawn);
   }
 }
 
-void PathSmoother::append(const Pose2& odometry) noexcept {
+void PathSmoother::append(const Pose2& odometry, const Pose2& drawn) noexcept {
   if (count_ == keyframes_.size()) {
     thin();
   }
   Keyframe& next = keyframes_[count_];
   next = Keyframe{};
   next.odometry = odometry;
+  next.drawn = drawn;
   if (count_ == 0) {
-    next.state[kX] = odometry.x_m;
-    next.state[kY] = odometry.y_m;
-    next.state[kYaw] = odometry.yaw_rad;
+    // Where the caller drew it: the odometry's frame says nothing about the local frame.
+    next.state[kX] = drawn.x_m;
+    next.state[kY] = drawn.y_m;
+    next.state[kYaw] = drawn.yaw_rad;
   } else {
     // Where the odometry puts it from the keyframe before, as solved.
     const Keyframe& before = keyframes_[count_ - 1];
@@ -343,6 +346,20 @@ Pose2 PathSmoother::pose(std::size_t i) const noexcept {
   BLOCKMAP_CHECK(i < count_);
   const Keyframe& k = keyframes_[i];
   return Pose2{k.odometry.stamp_ns, k.state[kX], k.state[kY], k.state[kYaw]};
+}
+
+const Pose2& PathSmoother::drawn(std::size_t i) const noexcept {
+  BLOCKMAP_CHECK(i < count_);
+  return keyframes_[i].drawn;
+}
+
+const Pose2& PathSmoother::odometry(std::size_t i) const noexcept {
+  BLOCKMAP_CHECK(i < count_);
+  return keyframes_[i].odometry;
+}
+
+PlanarCorrection PathSmoother::correction(std::size_t i) const noexcept {
+  return motion_between(drawn(i), pose(i));
 }
 
 Eigen::Vector2d PathSmoother::receiver_error_m(std::size_t i) const noexcept {

@@ -55,8 +55,10 @@ planes::PointMoments sample_moments(const planes::VoxelSums& sums, double voxel_
 // Between two begin_update(): each plane live before it leaves at most once (finalized,
 // merged or removed) and is changed at most once; each detected plane adds at most one plane
 // and pushes out at most one when the registry is full.
+// At the end of a run with a rigid path, every final plane is moved once (move_final).
 std::size_t changes_per_update(const PlaneRegistryConfig& config) noexcept {
-  return 2 * (config.max_live_planes + config.max_detected_planes);
+  return std::max(2 * (config.max_live_planes + config.max_detected_planes),
+                  config.max_live_planes + config.max_final_planes);
 }
 
 }  // namespace
@@ -577,6 +579,20 @@ void PlaneRegistry::restore(std::span<const SavedPlane> planes) noexcept {
     store_final(saved.plane, saved.moments);
     next_id_ = std::max(next_id_, saved.plane.id + 1);
   }
+}
+
+void PlaneRegistry::move_final(std::size_t index, const Eigen::Matrix3d& rotation,
+                               const Eigen::Vector3d& shift_m) noexcept {
+  BLOCKMAP_CHECK(index < final_count_);
+  msg::PlanePatch& plane = final_[index];
+  plane.normal = rotation * plane.normal;
+  plane.d_m += plane.normal.dot(shift_m);  // n'.(R x + t) = n.x + n'.t
+  plane.centroid_m = rotation * plane.centroid_m + shift_m;
+  for (std::size_t v = 0; v < plane.polygon_size; ++v) {
+    plane.polygon_m[v] = rotation * plane.polygon_m[v] + shift_m;
+  }
+  final_moments_[index] = final_moments_[index].moved(rotation, shift_m);
+  emit(msg::PlaneChangeKind::kFinalized, plane);
 }
 
 void PlaneRegistry::finalize_all() noexcept {

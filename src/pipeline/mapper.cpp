@@ -4,6 +4,9 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
+
+#include <Eigen/Geometry>
 
 #include "blockmap/core/check.hpp"
 
@@ -112,6 +115,15 @@ std::string validate(const MapperConfig& config) {
   if (std::string problem = localize::validate(config.scan_matching); !problem.empty()) {
     return problem;
   }
+  if (config.rigid_path) {
+    if (std::string problem = localize::validate(config.path); !problem.empty()) {
+      return problem;
+    }
+    if (!matcher_config(config).enabled) {
+      return "mapper: rigid_path needs scan matching with the localizer's live poses "
+             "([scan_matching] enabled, no pose lag)";
+    }
+  }
   if (std::string problem = map::validate(config.window); !problem.empty()) {
     return problem;
   }
@@ -166,6 +178,10 @@ void Mapper::init(Arena& arena, const MapperConfig& config) {
   config_ = config;
   localizer_.init(arena, config.localizer);
   matcher_.init(arena, matcher_config(config));
+  path_on_ = config.rigid_path;
+  if (path_on_) {
+    path_.init(arena, config.path);
+  }
   for (std::size_t laser = 0; laser < config.laser_count; ++laser) {
     matches_scans_[laser] = matcher_.enabled() && is_level_laser(config, laser);
   }
@@ -204,6 +220,7 @@ std::size_t Mapper::arena_bytes(const MapperConfig& config) noexcept {
   constexpr std::size_t kSlack = 64;
   return localize::Localizer::arena_bytes(config.localizer) +
          localize::ScanMatcher::arena_bytes(matcher_config(config)) +
+         (config.rigid_path ? localize::PathSmoother::arena_bytes(config.path) : 0) +
          map::VoxelWindow::arena_bytes(config.window) +
          planes::PlaneDetector::arena_budget_bytes(detector_config(config)) +
          map::PlaneRegistry::arena_bytes(registry_config(config)) +
@@ -321,12 +338,21 @@ void Mapper::apply(const Pending& message) noexcept {
       switch (localizer_.on_fix(message.fix, message.up_m)) {
         case localize::GpsOutcome::kRejected:
           ++counters_.fixes_rejected;
-          break;
+          return;  // an outlier to the filter is one to the path too
         case localize::GpsOutcome::kRecovered:
           ++counters_.fixes_recovered;
           break;
         default:
           break;
+      }
+      if (path_on_) {
+        if (path_fix_count_ == path_fixes_.size()) {
+          path_fix_first_ = (path_fix_first_ + 1) % path_fixes_.size();
+          --path_fix_count_;
+          ++counters_.rigid_path_fixes_dropped;
+        }
+        path_fixes_[(path_fix_first_ + path_fix_count_) % path_fixes_.size()] = message.fix;
+        ++path_fix_count_;
       }
       break;
     case Kind::kPose:
@@ -499,10 +525,14 @@ void Mapper::correct_by_scan_matching(std::size_t laser, localize::Pose3& first,
     // messages came.
     if (localizer_.map_pose_snapped_between(last_matched_scan_ns_, first.stamp_ns)) {
       matcher_.reset();
+      path_rebase_due_ = true;  // the matcher's frame starts over
     }
     last_matched_scan_ns_ = first.stamp_ns;
-    correction = matcher_.add_scan({first.stamp_ns, first.x_m, first.y_m, first.yaw_rad}, odometry,
-                                   first.z_m, points_m);
+    const localize::Pose2 raw{first.stamp_ns, first.x_m, first.y_m, first.yaw_rad};
+    correction = matcher_.add_scan(raw, odometry, first.z_m, points_m);
+    if (path_on_) {
+      feed_rigid_path(first.stamp_ns, correction.apply(raw), odometry);
+    }
     corrections_[correction_next_] = {first.stamp_ns, correction};
     correction_next_ = (correction_next_ + 1) % corrections_.size();
     correction_count_ = std::min(correction_count_ + 1, corrections_.size());
@@ -527,6 +557,96 @@ void Mapper::correct_by_scan_matching(std::size_t laser, localize::Pose3& first,
     pose->x_m = moved.x_m;
     pose->y_m = moved.y_m;
     pose->yaw_rad = moved.yaw_rad;
+  }
+}
+
+void Mapper::feed_rigid_path(TimestampNs stamp_ns, const localize::Pose2& drawn,
+                             const localize::Pose2& odometry) noexcept {
+  // Every 10 s of scan time the path is solved again, so that each solve starts
+  // near its answer (a sweep is O(keyframes)).
+  constexpr TimestampNs kSolveEveryNs = 10'000'000'000;
+  if (path_rebase_due_ && path_have_last_) {
+    // Where the dead reckoning carries the last pose (the rigid motion that lays the last
+    // odometry pose on the last path pose, applied to this one): the new frame's first pose
+    // goes there.
+    const localize::Pose2 carried =
+        localize::motion_between(path_last_odometry_, path_last_pose_).apply(odometry);
+    path_rebase_ = localize::motion_between(matcher_.matched(), carried);
+  }
+  path_rebase_due_ = false;
+  localize::Pose2 matched = path_rebase_.apply(matcher_.matched());
+  matched.stamp_ns = stamp_ns;
+  path_have_last_ = true;
+  path_last_pose_ = matched;
+  path_last_odometry_ = odometry;
+  localize::Pose2 drawn_at = drawn;
+  drawn_at.stamp_ns = stamp_ns;
+  bool added = false;
+  while (path_fix_count_ > 0 && path_fixes_[path_fix_first_].stamp_ns <= stamp_ns) {
+    const localize::GpsObservation& fix = path_fixes_[path_fix_first_];
+    path_.add(matched, drawn_at, Eigen::Vector2d(fix.east_m, fix.north_m), std::max(fix.hdop, 0.5));
+    path_fix_first_ = (path_fix_first_ + 1) % path_fixes_.size();
+    --path_fix_count_;
+    added = true;
+  }
+  if (!added) {
+    path_.add(matched, drawn_at, std::nullopt);
+  }
+  if (stamp_ns >= next_path_solve_ns_) {
+    path_.solve();
+    next_path_solve_ns_ = stamp_ns + kSolveEveryNs;
+  }
+}
+
+void Mapper::move_planes_by_rigid_path() noexcept {
+  // A final plane moves by the corrections of the keyframes drawn near it (within the
+  // lasers' reach, nearer ones more: they put more points on it), averaged: a turn about the
+  // vertical and where its centroid goes.
+  constexpr double kReachM = 30.0;
+  constexpr double kNearM = 2.0;
+  path_.solve();
+  const std::size_t keyframes = path_.keyframe_count();
+  if (keyframes < 2) {
+    return;
+  }
+  const std::span<const msg::PlanePatch> planes = registry_.final_planes();
+  for (std::size_t i = 0; i < planes.size(); ++i) {
+    const msg::PlanePatch& plane = planes[i];
+    Eigen::AlignedBox2d extent;
+    for (std::size_t v = 0; v < plane.polygon_size; ++v) {
+      extent.extend(plane.polygon_m[v].head<2>());
+    }
+    if (extent.isEmpty()) {
+      extent.extend(plane.centroid_m.head<2>());
+    }
+    const Eigen::Vector2d centroid_m = plane.centroid_m.head<2>();
+    double weight_sum = 0.0;
+    double yaw_sum_rad = 0.0;
+    Eigen::Vector2d moved_sum_m = Eigen::Vector2d::Zero();
+    for (std::size_t k = 0; k < keyframes; ++k) {
+      const localize::Pose2& drawn = path_.drawn(k);
+      const double distance_m =
+          std::sqrt(extent.squaredExteriorDistance(Eigen::Vector2d(drawn.x_m, drawn.y_m)));
+      if (distance_m > kReachM) {
+        continue;
+      }
+      const double weight = 1.0 / std::max(distance_m * distance_m, kNearM * kNearM);
+      const localize::PlanarCorrection correction = path_.correction(k);
+      weight_sum += weight;
+      yaw_sum_rad += weight * correction.yaw_rad;
+      moved_sum_m += weight * correction.apply(centroid_m);
+    }
+    if (weight_sum <= 0.0) {
+      continue;
+    }
+    const double yaw_rad = yaw_sum_rad / weight_sum;
+    const Eigen::Matrix3d rotation =
+        Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    const Eigen::Vector2d to_m = moved_sum_m / weight_sum;
+    const Eigen::Vector3d shift_m =
+        Eigen::Vector3d(to_m.x(), to_m.y(), plane.centroid_m.z()) - rotation * plane.centroid_m;
+    registry_.move_final(i, rotation, shift_m);
+    ++counters_.planes_moved;
   }
 }
 
@@ -735,6 +855,9 @@ bool Mapper::step() noexcept {
   if (!finalized_) {
     finalized_ = true;
     registry_.finalize_all();
+    if (path_on_) {
+      move_planes_by_rigid_path();
+    }
     update_stamp_ns_ = last_scan_ns_;
     refit_buildings();
     changes_ = registry_.changes();

@@ -214,6 +214,31 @@ TEST(PathSmoother, PosesBetweenKeyframesAreInterpolatedAndTimeDoesNotGoBack) {
   EXPECT_NEAR(smoother.pose_at(TimestampNs{20} * 1'000'000'000).x_m, 110.0, 0.05);
 }
 
+// What was drawn with another pose is moved by correction(): the rigid motion from the drawn
+// pose to the solved one.
+TEST(PathSmoother, TheCorrectionTakesTheDrawnPoseToTheSolvedOne) {
+  SmootherFixture fixture;
+  PathSmoother& smoother = fixture.smoother;
+  // The truth runs east along y = 0; the map was drawn 2 m north and turned by 0.1 rad.
+  for (int k = 0; k <= 40; ++k) {
+    const TimestampNs stamp = TimestampNs{k} * 250'000'000;
+    const double x_m = 0.25 * k;
+    const Pose2 drawn{stamp, x_m, 2.0, 0.1};
+    smoother.add(Pose2{stamp, x_m, 0.0, 0.0}, drawn, Eigen::Vector2d(x_m, 0.0));
+  }
+  smoother.solve();
+  for (std::size_t i = 0; i < smoother.keyframe_count(); ++i) {
+    const PlanarCorrection c = smoother.correction(i);
+    const Pose2 moved = c.apply(smoother.drawn(i));
+    const Pose2 solved = smoother.pose(i);
+    EXPECT_NEAR(moved.x_m, solved.x_m, 1e-9);
+    EXPECT_NEAR(moved.y_m, solved.y_m, 1e-9);
+    EXPECT_NEAR(moved.yaw_rad, solved.yaw_rad, 1e-9);
+    EXPECT_NEAR(solved.y_m, 0.0, 0.05);
+    EXPECT_NEAR(c.yaw_rad, -0.1, 0.01);
+  }
+}
+
 TEST(PathSmoother, BadConfigurationsAreNamed) {
   PathSmootherConfig config;
   EXPECT_EQ(validate(config), "");

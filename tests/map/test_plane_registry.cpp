@@ -2,9 +2,12 @@
 // their tiles leave, finalized when their region has left, merged, retracted, reopened.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <numbers>
 #include <vector>
+
+#include <Eigen/Geometry>
 
 #include "blockmap/core/arena.hpp"
 #include "blockmap/map/plane_registry.hpp"
@@ -259,6 +262,39 @@ TEST(PlaneRegistry, AFinalPlaneSeenAgainIsReopenedNotDuplicated) {
   EXPECT_EQ(changes[0].plane.id, added[0].plane.id);
   EXPECT_TRUE(r.registry.final_planes().empty());
   EXPECT_EQ(r.registry.counters().reopened, 1u);
+}
+
+// The rigid path moves a final plane with its points: the plane, its polygon and its moments
+// turn and shift together, and it is reported final again where it now is.
+TEST(PlaneRegistry, AMovedFinalPlaneTakesItsPointsAlongAndIsFinalAgain) {
+  Registry r;
+  const auto added = r.detect({wall(0, 5, 10)});
+  r.registry.begin_update();
+  r.registry.finalize_all();
+  ASSERT_EQ(r.registry.final_planes().size(), 1u);
+  r.registry.begin_update();
+  // A quarter turn about the vertical, then 1 m east: the wall y = 10 becomes x = -9.
+  const Eigen::Matrix3d turn =
+      Eigen::AngleAxisd(std::numbers::pi / 2.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  r.registry.move_final(0, turn, Eigen::Vector3d(1.0, 0.0, 0.0));
+  const auto changes = r.registry.changes();
+  ASSERT_EQ(changes.size(), 1u);
+  EXPECT_EQ(changes[0].change, msg::PlaneChangeKind::kFinalized);
+  EXPECT_EQ(changes[0].plane.id, added[0].plane.id);
+  const msg::PlanePatch& moved = r.registry.final_planes()[0];
+  EXPECT_NEAR(moved.normal.x(), -1.0, 1e-12);
+  EXPECT_NEAR(moved.d_m, 9.0, 1e-9);  // -x = 9
+  EXPECT_NEAR(moved.centroid_m.x(), -9.0, 1e-9);
+  EXPECT_NEAR(moved.centroid_m.y(), 2.5, 1e-9);
+  for (std::size_t v = 0; v < moved.polygon_size; ++v) {
+    EXPECT_NEAR(moved.normal.dot(moved.polygon_m[v]), moved.d_m, 1e-9);
+  }
+  std::array<SavedPlane, 4> saved{};
+  ASSERT_EQ(r.registry.save(saved), 1u);
+  const planes::PlaneFit fit = planes::fit_plane(saved[0].moments);
+  EXPECT_NEAR(std::abs(fit.normal_unit.x()), 1.0, 1e-9);
+  EXPECT_NEAR(fit.centroid_m.x(), -9.0, 1e-9);
+  EXPECT_NEAR(fit.centroid_m.y(), 2.5, 1e-9);
 }
 
 TEST(PlaneRegistry, WhenFullTheSmallestLivePlaneMakesRoomOrTheNewOneIsRefused) {

@@ -15,6 +15,18 @@
 namespace blockmap::pipeline {
 namespace {
 
+// A mapper whose arena is sealed after init, fed every recorded message: the steady state, which
+// must allocate nothing. The arena outlives the mapper, so the caller holds it.
+std::unique_ptr<Mapper> map_with_the_arena_sealed(Arena& arena, const MapperConfig& config,
+                                                  const testing::RecordedMapperInputs& inputs) {
+  auto mapper = std::make_unique<Mapper>();
+  mapper->init(arena, config);
+  arena.seal();
+  const auto map_everything = [&] { inputs.feed(*mapper); };
+  EXPECT_NO_ALLOCATIONS(map_everything());
+  return mapper;
+}
+
 TEST(MapperBudget, TheDefaultCapacitiesFitSixtyFourMebibytes) {
   const MapperConfig config = hal::sim::mapper_config_for(hal::sim::load_robot("paper_rmp"));
   EXPECT_EQ(validate(config), "");
@@ -41,11 +53,7 @@ TEST(MapperBudget, MappingAllocatesNothing) {
   ASSERT_TRUE(inputs.started);
   ASSERT_GT(inputs.scans.size(), 500u);
   Arena arena(Mapper::arena_bytes(inputs.config));
-  auto mapper = std::make_unique<Mapper>();
-  mapper->init(arena, inputs.config);
-  arena.seal();
-  const auto map_everything = [&] { inputs.feed(*mapper); };
-  EXPECT_NO_ALLOCATIONS(map_everything());
+  const auto mapper = map_with_the_arena_sealed(arena, inputs.config, inputs);
   EXPECT_GT(mapper->counters().extractions, 3u);
   EXPECT_GT(mapper->final_planes().size(), 0u);
   EXPECT_EQ(mapper->counters().scans_refused_full, 0u);
@@ -60,14 +68,27 @@ TEST(MapperBudget, CarvingFreeSpaceAndTracingBlocksAllocatesNothing) {
   MapperConfig config = inputs.config;
   config.free_space.tiles_across = 8;
   Arena arena(Mapper::arena_bytes(config));
-  auto mapper = std::make_unique<Mapper>();
-  mapper->init(arena, config);
-  arena.seal();
-  const auto map_everything = [&] { inputs.feed(*mapper); };
-  EXPECT_NO_ALLOCATIONS(map_everything());
+  const auto mapper = map_with_the_arena_sealed(arena, config, inputs);
   EXPECT_GT(mapper->free_space().counters().beams, 20000u);
   EXPECT_GT(mapper->free_space().counters().cells_crossed, mapper->free_space().counters().beams);
   EXPECT_GT(mapper->building_fitter().counters().fits, 3u);
+}
+
+// With the rigid path (localize::PathSmoother fed by every matched scan and fix, solved every
+// 10 s, and the final planes moved at the end): its keyframes and normal equations are taken at
+// init, and the default budget still holds them.
+TEST(MapperBudget, TheRigidPathAllocatesNothingAndFitsTheBudget) {
+  const testing::RecordedMapperInputs inputs("usc_block", 12.0);
+  ASSERT_TRUE(inputs.started);
+  MapperConfig config = inputs.config;
+  config.rigid_path = true;
+  EXPECT_EQ(validate(config), "");
+  EXPECT_LE(Mapper::arena_bytes(config), std::size_t{64} << 20);
+  Arena arena(Mapper::arena_bytes(config));
+  const auto mapper = map_with_the_arena_sealed(arena, config, inputs);
+  EXPECT_GT(mapper->rigid_path().keyframe_count(), 20u);
+  EXPECT_GT(mapper->rigid_path().counters().solves, 1u);
+  EXPECT_GT(mapper->counters().planes_moved, 0u);
 }
 
 // The detector's blocks follow the window: a quarter of its samples (a block each in a small

@@ -131,6 +131,21 @@ TEST(RunCommand, APoseLagDrawsEveryScanLate) {
   fs::remove_all(out);
 }
 
+// [rigid_path]: the whole run's path solved and the final planes moved with it (its mistakes,
+// a lag that leaves no live poses to match scans with among them, are in the table below).
+TEST(RunCommand, TheRigidPathMovesTheFinalPlanes) {
+  const fs::path out = scratch("rigid");
+  fs::create_directories(out);
+  const std::string rigid = (out / "rigid.toml").string();
+  std::ofstream(rigid) << "[rigid_path]\nenabled = true\n";
+  const testing::CliResult result =
+      run_cli({"run", "--config", rigid, "--duration-s", "12", "--out", (out / "run").string()});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  EXPECT_NE(result.err.find("rigid path: "), std::string::npos) << result.err;
+  EXPECT_EQ(result.err.find(" 0 final planes moved"), std::string::npos) << result.err;
+  fs::remove_all(out);
+}
+
 TEST(RunCommand, TheConfigSetsTheWindowAndTheExtractionsAndEveryMistakeNamesItsKey) {
   const fs::path out = scratch("window");
   fs::create_directories(out);
@@ -170,6 +185,9 @@ TEST(RunCommand, TheConfigSetsTheWindowAndTheExtractionsAndEveryMistakeNamesItsK
       {"[free_space]\ncell_size_m = 0\n", "free_space.cell_size_m: must be > 0"},
       {"[free_space]\ncell_size_m = 9\n", "free_space: cell_size_m must be from 0.05 to 5"},
       {"[free_space]\ncells = 9\n", "free_space.cells: unknown key"},
+      {"[rigid_path]\nenabled = true\nfix_sigma = 3\n", "rigid_path.fix_sigma: unknown key"},
+      {"[rigid_path]\nenabled = true\n[mapper]\npose_lag_s = 4.0\n",
+       "rigid_path needs scan matching"},
   };
   for (const auto& [text, expected] : mistakes) {
     result = run_cli({"run", "--config", config_with("bad.toml", text), "--duration-s", "1",

@@ -276,11 +276,22 @@ TEST(DaemonFaults, UnpluggedCorruptedSilentAndFloodedDevicesAreCountedAndNothing
 
   // And the block's walls are in the map. (Not compared wall by wall with a replay of the
   // same logs: in the first 16 m of driving, under 2 m of GPS noise, the particle filter's
-  // heading is a few degrees uncertain, and two runs of it map the same wall that far apart.)
+  // heading is a few degrees uncertain, and two runs of it map the same wall that far apart.
+  // For the same reason the facade comes out as one plane or as two or three turned a few
+  // degrees apart, as the threads' timing feeds the filter: the largest wall and the walls'
+  // points together are what every run shares. 2026-12-03, 7 runs, alone and with a core
+  // busy: the largest 15,541-36,840 points, all walls 39,000-42,000.)
   const std::vector<Wall> walls = walls_of(scratch / "out" / "planes.json");
-  const auto large = std::count_if(walls.begin(), walls.end(),
-                                   [](const Wall& wall) { return wall.support >= 5000.0; });
-  EXPECT_GE(large, 2) << "walls with 5,000 points or more";
+  double wall_points = 0.0;
+  double largest_wall = 0.0;
+  std::string supports;
+  for (const Wall& wall : walls) {
+    wall_points += wall.support;
+    largest_wall = std::max(largest_wall, wall.support);
+    supports += " " + std::to_string(static_cast<int>(wall.support));
+  }
+  EXPECT_GE(largest_wall, 10000.0) << "walls' points:" << supports;
+  EXPECT_GE(wall_points, 25000.0) << "walls' points:" << supports;
   if (!HasFailure()) {
     fs::remove_all(scratch);
   }

@@ -39,6 +39,7 @@
 #include "blockmap/core/arena.hpp"
 #include "blockmap/core/time.hpp"
 #include "blockmap/localize/particle_filter.hpp"
+#include "blockmap/localize/scan_matcher.hpp"
 
 namespace blockmap::localize {
 
@@ -84,6 +85,12 @@ class PathSmoother {
   // sigmas, an HDOP's worth). A keyframe is made for every fix, and for every
   // keyframe_spacing_m of motion without one. Times must not go back (refused, counted).
   void add(const Pose2& odometry, const std::optional<Eigen::Vector2d>& fix_m,
+           double fix_sigma_scale = 1.0) noexcept {
+    add(odometry, odometry, fix_m, fix_sigma_scale);
+  }
+  // The same, with the pose the caller drew its map with at that time (kept with the
+  // keyframe: correction() says how to move what was drawn then).
+  void add(const Pose2& odometry, const Pose2& drawn, const std::optional<Eigen::Vector2d>& fix_m,
            double fix_sigma_scale = 1.0) noexcept;
 
   // Gauss-Newton over the whole path, from the last solution (new keyframes start where the
@@ -98,11 +105,17 @@ class PathSmoother {
   // next one's time in proportion (odometry poses in between are not kept). Before the first
   // keyframe, the first; after the last, the last.
   [[nodiscard]] Pose2 pose_at(TimestampNs stamp_ns) const noexcept;
+  // Keyframe i's drawn pose (as given), and the rigid motion that takes it to the solved one:
+  // what moves a part of the map drawn at that time to where the solved path puts it.
+  [[nodiscard]] const Pose2& drawn(std::size_t i) const noexcept;
+  [[nodiscard]] const Pose2& odometry(std::size_t i) const noexcept;
+  [[nodiscard]] PlanarCorrection correction(std::size_t i) const noexcept;
   [[nodiscard]] const PathSmootherCounters& counters() const noexcept { return counters_; }
 
  private:
   struct Keyframe {
     Pose2 odometry;           // as given
+    Pose2 drawn;              // as given
     double fix_east_m = 0.0;  // the fixes merged into it, weighted mean
     double fix_north_m = 0.0;
     double fix_weight = 0.0;  // sum of 1 / sigma^2 of its fixes (0: none)
@@ -116,7 +129,7 @@ class PathSmoother {
     double gradient[5] = {};
   };
 
-  void append(const Pose2& odometry) noexcept;
+  void append(const Pose2& odometry, const Pose2& drawn) noexcept;
   void thin() noexcept;
   void accumulate_motion(std::size_t i) noexcept;
   void accumulate_receiver(std::size_t i) noexcept;

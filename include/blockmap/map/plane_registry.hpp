@@ -114,6 +114,11 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   void finalize_outside(const Eigen::AlignedBox2d& window_m) noexcept;
   // The end of the run: every live plane is finalized.
   void finalize_all() noexcept;
+  // Final plane `index` (of final_planes()) moved rigidly, p' = rotation p + shift_m, with its
+  // points' moments, and finalized again where it now is (reported as finalized): the
+  // mapper's rigid path moves what was drawn with the poses of its time.
+  void move_final(std::size_t index, const Eigen::Matrix3d& rotation,
+                  const Eigen::Vector3d& shift_m) noexcept;
 
   // Every plane as it would be if the run ended now (final planes as they are, live ones as
   // finalize_all() would make them), into `out`; how many (at most out.size(), the biggest

@@ -26,6 +26,7 @@
 #include "blockmap/buildings/building_fitter.hpp"
 #include "blockmap/core/arena.hpp"
 #include "blockmap/localize/localizer.hpp"
+#include "blockmap/localize/path_smoother.hpp"
 #include "blockmap/localize/scan_matcher.hpp"
 #include "blockmap/map/free_space_grid.hpp"
 #include "blockmap/map/plane_registry.hpp"
@@ -87,6 +88,13 @@ struct MapperConfig {
   // scans before it hit, and every scan drawn with the corrected pose (localize::ScanMatcher,
   // docs/localize.md).
   localize::ScanMatchConfig scan_matching;
+  // The whole run's path at once (localize::PathSmoother, docs/localize.md): the level
+  // lasers' matched poses as its odometry and every fix the localizer took. At the end of the
+  // run every final plane is moved by how far the solved path lies from the poses it was
+  // drawn with while the robot was near it, and the buildings are fitted again. Needs scan
+  // matching (the localizer's live poses).
+  bool rigid_path = false;
+  localize::PathSmootherConfig path;
   std::size_t max_external_poses = 1024;  // kExternal: the newest poses kept to interpolate
 
   std::array<map::SensorMount, kMaxLasers> laser_mounts{};
@@ -165,6 +173,8 @@ struct MapperCounters {
   std::size_t peak_samples_without_room = 0;
   std::uint64_t scan_planes_rejected = 0;  // detected planes that were a laser's scan plane
   std::uint64_t points = 0;
+  std::uint64_t rigid_path_fixes_dropped = 0;  // fixes that waited for a matched scan too long
+  std::uint64_t planes_moved = 0;              // final planes the rigid path moved
 };
 
 // A plane-list update: what changed since the previous one, at `stamp_ns` (scan time).
@@ -240,6 +250,7 @@ class Mapper {
   [[nodiscard]] const planes::PlaneDetector& detector() const noexcept { return detector_; }
   [[nodiscard]] const localize::Localizer& localizer() const noexcept { return localizer_; }
   [[nodiscard]] const localize::ScanMatcher& scan_matcher() const noexcept { return matcher_; }
+  [[nodiscard]] const localize::PathSmoother& rigid_path() const noexcept { return path_; }
   [[nodiscard]] const map::ProjectionCounters& projection(std::size_t laser) const noexcept {
     return projectors_[laser].counters();
   }
@@ -295,6 +306,11 @@ class Mapper {
   // points and poses are moved by the correction.
   void correct_by_scan_matching(std::size_t laser, localize::Pose3& first, localize::Pose3& last,
                                 std::span<Eigen::Vector3f> points_m) noexcept;
+  // The rigid path: a matched scan's pose in the matcher's frame with the fixes before it, and
+  // at the end the final planes moved by the solved path.
+  void feed_rigid_path(TimestampNs stamp_ns, const localize::Pose2& drawn,
+                       const localize::Pose2& odometry) noexcept;
+  void move_planes_by_rigid_path() noexcept;
   // A level laser's beams carve the free-space grid, from its position at `pose`.
   void carve_free_space(std::size_t laser, const localize::Pose3& pose,
                         std::span<const Eigen::Vector3f> points_m) noexcept;
@@ -324,6 +340,22 @@ class Mapper {
   std::size_t correction_next_ = 0;
   std::size_t correction_count_ = 0;
   TimestampNs last_matched_scan_ns_ = 0;
+  localize::PathSmoother path_;
+  bool path_on_ = false;
+  // Fixes wait here for the first matched scan at or after them (scans are drawn after the
+  // poses cover them, fixes go to the localizer as they are released).
+  std::array<localize::GpsObservation, 64> path_fixes_{};
+  std::size_t path_fix_first_ = 0;
+  std::size_t path_fix_count_ = 0;
+  TimestampNs next_path_solve_ns_ = 0;
+  // The matcher's frame starts over when the filter's poses snap; the path's odometry goes on
+  // across: the new frame is laid where the localizer's dead reckoning carries the last
+  // matched pose (path_rebase_ takes matched poses into the path's one frame).
+  localize::PlanarCorrection path_rebase_;
+  bool path_rebase_due_ = false;
+  bool path_have_last_ = false;
+  localize::Pose2 path_last_pose_;
+  localize::Pose2 path_last_odometry_;
   std::array<map::ScanProjector, kMaxLasers> projectors_{
       map::ScanProjector({}, {}), map::ScanProjector({}, {}), map::ScanProjector({}, {}),
       map::ScanProjector({}, {})};

@@ -32,6 +32,17 @@ struct PointMoments {
                     weight * shift_m * shift_m.transpose();
     return out;
   }
+  // The same points moved rigidly: p' = rotation p + shift_m.
+  [[nodiscard]] PointMoments moved(const Eigen::Matrix3d& rotation,
+                                   const Eigen::Vector3d& shift_m) const noexcept {
+    PointMoments out;
+    out.weight = weight;
+    const Eigen::Vector3d turned = rotation * sum;
+    out.sum = turned + weight * shift_m;
+    out.sum_outer = rotation * sum_outer * rotation.transpose() + turned * shift_m.transpose() +
+                    shift_m * turned.transpose() + weight * shift_m * shift_m.transpose();
+    return out;
+  }
   [[nodiscard]] Eigen::Vector3d mean() const noexcept { return sum / weight; }
   [[nodiscard]] Eigen::Matrix3d covariance() const noexcept {
     const Eigen::Vector3d m = mean();
