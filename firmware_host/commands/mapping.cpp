@@ -173,7 +173,7 @@ void MappingSession::report(std::ostream& err, double data_s) const {
         static_cast<unsigned long long>(m.too_far), static_cast<unsigned long long>(m.resets));
     err << text;
   }
-  if (mapper_.config().rigid_path) {
+  if (mapper_.rigid_path_on()) {
     const localize::PathSmootherCounters& p = mapper_.rigid_path().counters();
     std::snprintf(
         text, sizeof text,

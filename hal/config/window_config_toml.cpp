@@ -57,7 +57,11 @@ pipeline::MapperConfig parse_window_config(std::string_view text, std::string_vi
     TableReader& t = *table;
     // The whole run's path at once, and the final planes moved with it (docs/localize.md,
     // The whole path at once).
-    c.rigid_path = t.boolean_or("enabled", c.rigid_path);
+    // Left out: on wherever scans are matched. Given: asked for, or off.
+    if (t.has("enabled")) {
+      c.rigid_path =
+          t.boolean_or("enabled", false) ? pipeline::RigidPath::kOn : pipeline::RigidPath::kOff;
+    }
     localize::PathSmootherConfig& r = c.path;
     r.max_keyframes = t.capacity_or("max_keyframes", r.max_keyframes);
     r.keyframe_spacing_m = t.positive_or("keyframe_spacing_m", r.keyframe_spacing_m);

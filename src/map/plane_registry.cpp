@@ -86,6 +86,68 @@ std::string validate(const PlaneRegistryConfig& config) {
   return {};
 }
 
+void SeenSpans::add_span(TimestampNs from, TimestampNs to) noexcept {
+  // The spans it comes within kJoinGapNs of join it.
+  for (std::size_t i = 0; i < count;) {
+    if (from <= to_ns[i] + kJoinGapNs && to + kJoinGapNs >= from_ns[i]) {
+      from = std::min(from, from_ns[i]);
+      to = std::max(to, to_ns[i]);
+      --count;
+      from_ns[i] = from_ns[count];
+      to_ns[i] = to_ns[count];
+      continue;
+    }
+    ++i;
+  }
+  if (count == kMaxSpans) {
+    // Full: the two spans nearest in time (the new one among them) become one.
+    std::array<TimestampNs, kMaxSpans + 1> all_from{};
+    std::array<TimestampNs, kMaxSpans + 1> all_to{};
+    std::copy(from_ns.begin(), from_ns.end(), all_from.begin());
+    std::copy(to_ns.begin(), to_ns.end(), all_to.begin());
+    all_from[kMaxSpans] = from;
+    all_to[kMaxSpans] = to;
+    std::size_t a = 0;
+    std::size_t b = 1;
+    TimestampNs shortest = std::numeric_limits<TimestampNs>::max();
+    for (std::size_t i = 0; i <= kMaxSpans; ++i) {
+      for (std::size_t j = i + 1; j <= kMaxSpans; ++j) {
+        const TimestampNs gap = std::max(all_from[i], all_from[j]) - std::min(all_to[i], all_to[j]);
+        if (gap < shortest) {
+          shortest = gap;
+          a = i;
+          b = j;
+        }
+      }
+    }
+    all_from[a] = std::min(all_from[a], all_from[b]);
+    all_to[a] = std::max(all_to[a], all_to[b]);
+    all_from[b] = all_from[kMaxSpans];
+    all_to[b] = all_to[kMaxSpans];
+    std::copy_n(all_from.begin(), kMaxSpans, from_ns.begin());
+    std::copy_n(all_to.begin(), kMaxSpans, to_ns.begin());
+    return;
+  }
+  from_ns[count] = from;
+  to_ns[count] = to;
+  ++count;
+}
+
+void SeenSpans::merge(const SeenSpans& other) noexcept {
+  for (std::size_t i = 0; i < other.count; ++i) {
+    add_span(other.from_ns[i], other.to_ns[i]);
+  }
+}
+
+bool SeenSpans::covers(TimestampNs stamp_ns, TimestampNs lead_ns) const noexcept {
+  for (std::size_t i = 0; i < count; ++i) {
+    if (stamp_ns + lead_ns >= from_ns[i] && stamp_ns <= to_ns[i]) {
+      return true;
+    }
+  }
+  return false;
+}
+
 void PlaneRegistry::init(Arena& arena, const PlaneRegistryConfig& config) {
   const std::string problem = validate(config);
   BLOCKMAP_CHECK_MSG(problem.empty(), "an invalid registry configuration reached init()");
@@ -96,6 +158,7 @@ void PlaneRegistry::init(Arena& arena, const PlaneRegistryConfig& config) {
   final_ = arena.allocate_array<msg::PlanePatch>(config.max_final_planes, "registry.final");
   final_moments_ =
       arena.allocate_array<planes::PointMoments>(config.max_final_planes, "registry.final");
+  final_seen_ = arena.allocate_array<SeenSpans>(config.max_final_planes, "registry.final");
   changes_ = arena.allocate_array<msg::PlaneChange>(changes_per_update(config), "registry.changes");
   constexpr std::size_t kPoints = VoxelWindow::kEvictionChunk + 2 * msg::kMaxPolygonVertices;
   scratch_2d_ = arena.allocate_array<Eigen::Vector2d>(kPoints, "registry.scratch");
@@ -105,9 +168,10 @@ void PlaneRegistry::init(Arena& arena, const PlaneRegistryConfig& config) {
 std::size_t PlaneRegistry::arena_bytes(const PlaneRegistryConfig& config) noexcept {
   constexpr std::size_t kPoints = VoxelWindow::kEvictionChunk + 2 * msg::kMaxPolygonVertices;
   return config.max_live_planes * sizeof(LivePlane) +
-         config.max_final_planes * (sizeof(msg::PlanePatch) + sizeof(planes::PointMoments)) +
+         config.max_final_planes *
+             (sizeof(msg::PlanePatch) + sizeof(planes::PointMoments) + sizeof(SeenSpans)) +
          changes_per_update(config) * sizeof(msg::PlaneChange) +
-         (2 * kPoints + 1) * sizeof(Eigen::Vector2d) + std::size_t{5} * 64;
+         (2 * kPoints + 1) * sizeof(Eigen::Vector2d) + std::size_t{6} * 64;
 }
 
 std::uint8_t PlaneRegistry::hull_on_plane(const Eigen::Vector3d& normal,
@@ -245,11 +309,12 @@ PlaneRegistry::LivePlane* PlaneRegistry::take_final_matches(const msg::PlanePatc
       continue;
     }
     const planes::PointMoments moments = final_moments_[i];
+    const SeenSpans seen = final_seen_[i];
     remove_final(i);  // i now holds the next one
     if (into == nullptr) {
       LivePlane* slot = free_slot(final_plane.support);
       if (slot == nullptr) {
-        store_final(final_plane, moments);  // no room to reopen it: it stays final
+        store_final(final_plane, moments, seen);  // no room to reopen it: it stays final
         return nullptr;
       }
       *slot = LivePlane{};
@@ -262,6 +327,7 @@ PlaneRegistry::LivePlane* PlaneRegistry::take_final_matches(const msg::PlanePatc
       slot->frozen_polygon_size = final_plane.polygon_size;
       slot->reference_normal = final_plane.normal;
       slot->reported = final_plane;
+      slot->seen = seen;
       const Eigen::AlignedBox3d box = box_of(polygon_of(final_plane));
       slot->box_min_m = box.min();
       slot->box_max_m = box.max();
@@ -271,6 +337,7 @@ PlaneRegistry::LivePlane* PlaneRegistry::take_final_matches(const msg::PlanePatc
     }
     // A second final plane on the same surface: one with the first.
     into->frozen.merge(moments);
+    into->seen.merge(seen);
     std::array<Eigen::Vector3d, msg::kMaxPolygonVertices> joined{};
     into->frozen_polygon_size =
         hull_on_plane(into->reported.normal, into->reported.centroid_m,
@@ -287,13 +354,15 @@ void PlaneRegistry::remove_final(std::size_t index) noexcept {
   --final_count_;
   final_[index] = final_[final_count_];
   final_moments_[index] = final_moments_[final_count_];
+  final_seen_[index] = final_seen_[final_count_];
 }
 
-void PlaneRegistry::store_final(const msg::PlanePatch& plane,
-                                const planes::PointMoments& moments) noexcept {
+void PlaneRegistry::store_final(const msg::PlanePatch& plane, const planes::PointMoments& moments,
+                                const SeenSpans& seen) noexcept {
   if (final_count_ < final_.size()) {
     final_[final_count_] = plane;
     final_moments_[final_count_] = moments;
+    final_seen_[final_count_] = seen;
     ++final_count_;
     return;
   }
@@ -307,11 +376,13 @@ void PlaneRegistry::store_final(const msg::PlanePatch& plane,
   if (final_[smallest].support < plane.support) {
     final_[smallest] = plane;
     final_moments_[smallest] = moments;
+    final_seen_[smallest] = seen;
   }
 }
 
 void PlaneRegistry::absorb(LivePlane& big, LivePlane& small) noexcept {
   big.frozen.merge(small.frozen);
+  big.seen.merge(small.seen);
   if (small.kind_support > big.kind_support) {
     big.kind = small.kind;
     big.kind_support = small.kind_support;
@@ -400,7 +471,8 @@ PlaneRegistry::LivePlane* PlaneRegistry::free_slot(double support) noexcept {
 }
 
 void PlaneRegistry::update(std::span<const msg::PlanePatch> detected,
-                           std::span<const planes::PointMoments> moments) noexcept {
+                           std::span<const planes::PointMoments> moments,
+                           TimestampNs seen_ns) noexcept {
   BLOCKMAP_CHECK_MSG(detected.size() == moments.size(), "each detected plane needs its moments");
   ++update_number_;
   for (std::size_t i = 0; i < detected.size(); ++i) {
@@ -433,6 +505,7 @@ void PlaneRegistry::update(std::span<const msg::PlanePatch> detected,
       plane->live_polygon_size = size;
     }
     plane->fresh = true;
+    plane->seen.add(seen_ns);
     // The label of the best look: a window that holds a corner of a plane labels it by what
     // else it holds (the ground is the lowest large horizontal plane in it).
     if (seen.support >= plane->kind_support) {
@@ -529,7 +602,7 @@ void PlaneRegistry::finalize(LivePlane& plane) noexcept {
   combine(plane, plane.reported);
   emit(msg::PlaneChangeKind::kFinalized, plane.reported);
   ++counters_.finalized;
-  store_final(plane.reported, points_of(plane));
+  store_final(plane.reported, points_of(plane), plane.seen);
   plane.in_use = false;
   --live_count_;
 }
@@ -576,7 +649,7 @@ std::size_t PlaneRegistry::save(std::span<SavedPlane> out) noexcept {
 
 void PlaneRegistry::restore(std::span<const SavedPlane> planes) noexcept {
   for (const SavedPlane& saved : planes) {
-    store_final(saved.plane, saved.moments);
+    store_final(saved.plane, saved.moments, SeenSpans{});
     next_id_ = std::max(next_id_, saved.plane.id + 1);
   }
 }

@@ -95,6 +95,16 @@ map::PlaneRegistryConfig registry_config(const MapperConfig& config) noexcept {
   return registry;
 }
 
+// Whether `config` has the mapper solve the whole run's path. Not by default with the
+// free-space grid: it keeps what the beams carved with the poses of their time, and walls
+// moved off it would no longer be the outline traced in it (the real UAL loop's block lost
+// 60 % of its seen outline that way).
+bool solves_the_path(const MapperConfig& config) noexcept {
+  return config.rigid_path == RigidPath::kOn ||
+         (config.rigid_path == RigidPath::kWhereScansAreMatched && matcher_config(config).enabled &&
+          config.free_space.tiles_across == 0);
+}
+
 }  // namespace
 
 std::size_t scan_queue_slots(const MapperConfig& config) noexcept {
@@ -115,13 +125,17 @@ std::string validate(const MapperConfig& config) {
   if (std::string problem = localize::validate(config.scan_matching); !problem.empty()) {
     return problem;
   }
-  if (config.rigid_path) {
+  if (solves_the_path(config)) {
     if (std::string problem = localize::validate(config.path); !problem.empty()) {
       return problem;
     }
     if (!matcher_config(config).enabled) {
       return "mapper: rigid_path needs scan matching with the localizer's live poses "
              "([scan_matching] enabled, no pose lag)";
+    }
+    if (config.free_space.tiles_across > 0) {
+      return "mapper: rigid_path would move the walls off the free-space grid, which stays "
+             "where the scans were drawn ([free_space] tiles_across = 0, or rigid_path off)";
     }
   }
   if (std::string problem = map::validate(config.window); !problem.empty()) {
@@ -178,7 +192,7 @@ void Mapper::init(Arena& arena, const MapperConfig& config) {
   config_ = config;
   localizer_.init(arena, config.localizer);
   matcher_.init(arena, matcher_config(config));
-  path_on_ = config.rigid_path;
+  path_on_ = solves_the_path(config);
   if (path_on_) {
     path_.init(arena, config.path);
   }
@@ -220,7 +234,7 @@ std::size_t Mapper::arena_bytes(const MapperConfig& config) noexcept {
   constexpr std::size_t kSlack = 64;
   return localize::Localizer::arena_bytes(config.localizer) +
          localize::ScanMatcher::arena_bytes(matcher_config(config)) +
-         (config.rigid_path ? localize::PathSmoother::arena_bytes(config.path) : 0) +
+         (solves_the_path(config) ? localize::PathSmoother::arena_bytes(config.path) : 0) +
          map::VoxelWindow::arena_bytes(config.window) +
          planes::PlaneDetector::arena_budget_bytes(detector_config(config)) +
          map::PlaneRegistry::arena_bytes(registry_config(config)) +
@@ -599,11 +613,19 @@ void Mapper::feed_rigid_path(TimestampNs stamp_ns, const localize::Pose2& drawn,
 }
 
 void Mapper::move_planes_by_rigid_path() noexcept {
-  // A final plane moves by the corrections of the keyframes drawn near it (within the
-  // lasers' reach, nearer ones more: they put more points on it), averaged: a turn about the
-  // vertical and where its centroid goes.
+  // A final plane moves by the corrections of the keyframes that drew it: near it (within
+  // the lasers' reach, nearer ones more: they put more points on it) while it was being seen
+  // (a pass behind the building, as near, did not draw it), averaged: a turn about the
+  // vertical and where its centroid goes. A detection holds points drawn up to kLeadNs
+  // before the plane was first matched (it takes points before it is found).
   constexpr double kReachM = 30.0;
   constexpr double kNearM = 2.0;
+  constexpr TimestampNs kLeadNs = 10 * kNanosecondsPerSecond;
+  // Without fixes nothing says where the path lies but its own odometry, which the scans
+  // were drawn with already (a log with no GPS): the planes stay.
+  if (path_.counters().fixes == 0) {
+    return;
+  }
   path_.solve();
   const std::size_t keyframes = path_.keyframe_count();
   if (keyframes < 2) {
@@ -612,6 +634,7 @@ void Mapper::move_planes_by_rigid_path() noexcept {
   const std::span<const msg::PlanePatch> planes = registry_.final_planes();
   for (std::size_t i = 0; i < planes.size(); ++i) {
     const msg::PlanePatch& plane = planes[i];
+    const map::SeenSpans& seen = registry_.seen_spans(i);
     Eigen::AlignedBox2d extent;
     for (std::size_t v = 0; v < plane.polygon_size; ++v) {
       extent.extend(plane.polygon_m[v].head<2>());
@@ -625,6 +648,9 @@ void Mapper::move_planes_by_rigid_path() noexcept {
     Eigen::Vector2d moved_sum_m = Eigen::Vector2d::Zero();
     for (std::size_t k = 0; k < keyframes; ++k) {
       const localize::Pose2& drawn = path_.drawn(k);
+      if (seen.count > 0 && !seen.covers(drawn.stamp_ns, kLeadNs)) {
+        continue;
+      }
       const double distance_m =
           std::sqrt(extent.squaredExteriorDistance(Eigen::Vector2d(drawn.x_m, drawn.y_m)));
       if (distance_m > kReachM) {
@@ -690,7 +716,7 @@ void Mapper::extract(TimestampNs stamp_ns) noexcept {
   counters_.sections_replayed += detector_.stats().sections_replayed;
   counters_.sections_still_barren += detector_.stats().sections_still_barren;
   counters_.sections_settled += detector_.stats().sections_settled;
-  registry_.update(planes, detector_.plane_moments());
+  registry_.update(planes, detector_.plane_moments(), stamp_ns);
   update_stamp_ns_ = stamp_ns;
   refit_buildings();
 }

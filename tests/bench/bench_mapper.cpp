@@ -8,7 +8,8 @@
 //                               covers it); step_max_ms is the longest, an extraction
 //   extract_ms       mean time of one plane extraction (detect + registry): a scan's points
 //                    reach the plane list at the next extraction, at most extract_every_s on
-// Arguments: window tiles across (5, 7, 9) and the pose source (0 filter, 1 true poses).
+// Arguments: window tiles across (5, 7, 9), the pose source (0 filter, 1 true poses), and 1 to
+// run without the rigid path (the default solves it with the filter's poses).
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -42,6 +43,10 @@ void BM_MapperMinute(benchmark::State& state) {
   MapperConfig config = inputs.config;
   config.window.tiles_across = static_cast<std::uint32_t>(state.range(0));
   config.pose_source = state.range(1) == 0 ? PoseSource::kLocalizer : PoseSource::kExternal;
+  // The third argument 1: without the rigid path (on by default with the filter's poses).
+  if (state.range(2) == 1) {
+    config.rigid_path = RigidPath::kOff;
+  }
   std::unique_ptr<Mapper> mapper;
   std::vector<double> step_us;
   step_us.reserve(inputs.events.size() + 16);
@@ -87,7 +92,8 @@ void BM_MapperMinute(benchmark::State& state) {
       extractions > 0 ? 1e3 * extract_s / static_cast<double>(extractions) : 0.0;
 }
 BENCHMARK(BM_MapperMinute)
-    ->ArgsProduct({{5, 7, 9}, {0, 1}})
+    ->ArgsProduct({{5, 7, 9}, {0, 1}, {0}})
+    ->Args({7, 0, 1})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(2);
 

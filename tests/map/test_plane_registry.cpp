@@ -86,11 +86,13 @@ struct Registry {
       patches.push_back(d.plane);
       moments.push_back(d.moments);
     }
-    registry.update(patches, moments);
+    registry.update(patches, moments, now_ns);
+    now_ns += kNanosecondsPerSecond;
     return {registry.changes().begin(), registry.changes().end()};
   }
   Arena arena;
   PlaneRegistry registry;
+  TimestampNs now_ns = 0;  // of the next detection: one a second
 };
 
 std::size_t count(const std::vector<msg::PlaneChange>& changes, msg::PlaneChangeKind kind) {
@@ -262,6 +264,67 @@ TEST(PlaneRegistry, AFinalPlaneSeenAgainIsReopenedNotDuplicated) {
   EXPECT_EQ(changes[0].plane.id, added[0].plane.id);
   EXPECT_TRUE(r.registry.final_planes().empty());
   EXPECT_EQ(r.registry.counters().reopened, 1u);
+}
+
+// When a plane was seen: detections less than 20 s apart are one span, a later look (the
+// robot came back) another; the mapper's rigid path moves it by the keyframes of those times.
+TEST(PlaneRegistry, AFinalPlaneKnowsWhenItWasSeen) {
+  Registry r;
+  for (int i = 0; i < 3; ++i) {
+    static_cast<void>(r.detect({wall(0, 5, 10)}));  // at 0, 1 and 2 s
+  }
+  r.registry.begin_update();
+  r.registry.finalize_all();
+  ASSERT_EQ(r.registry.final_planes().size(), 1u);
+  const SeenSpans& once = r.registry.seen_spans(0);
+  ASSERT_EQ(once.count, 1u);
+  EXPECT_EQ(once.from_ns[0], 0);
+  EXPECT_EQ(once.to_ns[0], 2 * kNanosecondsPerSecond);
+  // Seen again 100 s later: reopened, and a second span when it is final again.
+  r.now_ns = 100 * kNanosecondsPerSecond;
+  static_cast<void>(r.detect({wall(0, 6, 10)}));
+  r.registry.begin_update();
+  r.registry.finalize_all();
+  ASSERT_EQ(r.registry.final_planes().size(), 1u);
+  const SeenSpans& twice = r.registry.seen_spans(0);
+  ASSERT_EQ(twice.count, 2u);
+  EXPECT_TRUE(twice.covers(kNanosecondsPerSecond, 0));
+  EXPECT_TRUE(twice.covers(100 * kNanosecondsPerSecond, 0));
+  EXPECT_FALSE(twice.covers(50 * kNanosecondsPerSecond, 0)) << "between the passes";
+  EXPECT_TRUE(twice.covers(95 * kNanosecondsPerSecond, 10 * kNanosecondsPerSecond))
+      << "points drawn shortly before the detection that found them";
+}
+
+TEST(SeenSpans, JoinsNearLooksAndWhenFullTheNearestSpans) {
+  constexpr TimestampNs kS = kNanosecondsPerSecond;
+  SeenSpans seen;
+  for (const TimestampNs t : {0 * kS, 10 * kS, 25 * kS}) {
+    seen.add(t);  // each within 20 s of the one before: one span
+  }
+  ASSERT_EQ(seen.count, 1u);
+  EXPECT_EQ(seen.to_ns[0], 25 * kS);
+  for (const TimestampNs t : {100 * kS, 200 * kS, 300 * kS}) {
+    seen.add(t);
+  }
+  ASSERT_EQ(seen.count, SeenSpans::kMaxSpans);
+  // A fifth look: the two spans nearest in time (0-25 s and 100 s, 75 s apart) become one.
+  seen.add(400 * kS);
+  ASSERT_EQ(seen.count, SeenSpans::kMaxSpans);
+  EXPECT_TRUE(seen.covers(60 * kS, 0)) << "the joined span covers the gap it closed";
+  EXPECT_FALSE(seen.covers(150 * kS, 0));
+  EXPECT_TRUE(seen.covers(400 * kS, 0));
+  EXPECT_TRUE(seen.covers(200 * kS, 0));
+  // A span that bridges two others takes both.
+  SeenSpans bridge;
+  bridge.add(0);
+  bridge.add(40 * kS);
+  ASSERT_EQ(bridge.count, 2u);
+  SeenSpans middle;
+  middle.add(20 * kS);
+  bridge.merge(middle);
+  ASSERT_EQ(bridge.count, 1u);
+  EXPECT_EQ(bridge.from_ns[0], 0);
+  EXPECT_EQ(bridge.to_ns[0], 40 * kS);
 }
 
 // The rigid path moves a final plane with its points: the plane, its polygon and its moments

@@ -81,7 +81,7 @@ TEST(MapperBudget, TheRigidPathAllocatesNothingAndFitsTheBudget) {
   const testing::RecordedMapperInputs inputs("usc_block", 12.0);
   ASSERT_TRUE(inputs.started);
   MapperConfig config = inputs.config;
-  config.rigid_path = true;
+  config.rigid_path = pipeline::RigidPath::kOn;
   EXPECT_EQ(validate(config), "");
   EXPECT_LE(Mapper::arena_bytes(config), std::size_t{64} << 20);
   Arena arena(Mapper::arena_bytes(config));
@@ -89,6 +89,37 @@ TEST(MapperBudget, TheRigidPathAllocatesNothingAndFitsTheBudget) {
   EXPECT_GT(mapper->rigid_path().keyframe_count(), 20u);
   EXPECT_GT(mapper->rigid_path().counters().solves, 1u);
   EXPECT_GT(mapper->counters().planes_moved, 0u);
+}
+
+// When the path is solved: by default wherever the level scans are matched and no free-space
+// grid is kept (it is not moved with the walls); asked for where it cannot run, refused.
+TEST(MapperBudget, TheRigidPathRunsByDefaultWhereScansAreMatched) {
+  MapperConfig config;
+  ASSERT_EQ(config.rigid_path, RigidPath::kWhereScansAreMatched);
+  const std::size_t without = [] {
+    MapperConfig off;
+    off.rigid_path = RigidPath::kOff;
+    return Mapper::arena_bytes(off);
+  }();
+  EXPECT_GT(Mapper::arena_bytes(config), without) << "the keyframes are taken";
+  MapperConfig lagged = config;
+  lagged.localizer.map_pose_lag_s = 30.0;
+  EXPECT_EQ(validate(lagged), "") << "a pose lag runs without it";
+  MapperConfig traced = config;
+  traced.free_space.tiles_across = 8;
+  EXPECT_EQ(validate(traced), "") << "so does a free-space grid";
+  MapperConfig true_poses = config;
+  true_poses.pose_source = PoseSource::kExternal;
+  EXPECT_EQ(validate(true_poses), "");
+  for (MapperConfig* asked : {&lagged, &traced, &true_poses}) {
+    asked->rigid_path = RigidPath::kOn;
+    EXPECT_NE(validate(*asked), "") << "asked for, it is refused where it cannot run";
+  }
+  // Without it nothing is taken for it: the path's bytes are the difference.
+  lagged.rigid_path = RigidPath::kWhereScansAreMatched;
+  MapperConfig lagged_off = lagged;
+  lagged_off.rigid_path = RigidPath::kOff;
+  EXPECT_EQ(Mapper::arena_bytes(lagged), Mapper::arena_bytes(lagged_off));
 }
 
 // The detector's blocks follow the window: a quarter of its samples (a block each in a small

@@ -131,18 +131,25 @@ TEST(RunCommand, APoseLagDrawsEveryScanLate) {
   fs::remove_all(out);
 }
 
-// [rigid_path]: the whole run's path solved and the final planes moved with it (its mistakes,
-// a lag that leaves no live poses to match scans with among them, are in the table below).
-TEST(RunCommand, TheRigidPathMovesTheFinalPlanes) {
+// [rigid_path]: the whole run's path solved and the final planes moved with it. On by default
+// where the scans are matched (a pose lag above leaves none and runs without it); `enabled =
+// false` turns it off. Its mistakes (asked for where it cannot run) are in the table below.
+TEST(RunCommand, TheRigidPathMovesTheFinalPlanesUnlessTurnedOff) {
   const fs::path out = scratch("rigid");
   fs::create_directories(out);
-  const std::string rigid = (out / "rigid.toml").string();
-  std::ofstream(rigid) << "[rigid_path]\nenabled = true\n";
-  const testing::CliResult result =
-      run_cli({"run", "--config", rigid, "--duration-s", "12", "--out", (out / "run").string()});
-  ASSERT_EQ(result.status, kExitOk) << result.err;
-  EXPECT_NE(result.err.find("rigid path: "), std::string::npos) << result.err;
-  EXPECT_EQ(result.err.find(" 0 final planes moved"), std::string::npos) << result.err;
+  const testing::CliResult by_default =
+      run_cli({"run", "--duration-s", "12", "--out", (out / "default").string()});
+  ASSERT_EQ(by_default.status, kExitOk) << by_default.err;
+  EXPECT_NE(by_default.err.find("rigid path: "), std::string::npos) << by_default.err;
+  EXPECT_EQ(by_default.err.find(" 0 final planes moved"), std::string::npos) << by_default.err;
+  const std::string off = (out / "off.toml").string();
+  std::ofstream(off) << "[rigid_path]\nenabled = false\n";
+  const testing::CliResult turned_off =
+      run_cli({"run", "--config", off, "--duration-s", "12", "--out", (out / "off").string()});
+  ASSERT_EQ(turned_off.status, kExitOk) << turned_off.err;
+  EXPECT_EQ(turned_off.err.find("rigid path: "), std::string::npos) << turned_off.err;
+  EXPECT_EQ(turned_off.err.find("localize.path_keyframes"), std::string::npos)
+      << "nothing taken for it: " << turned_off.err;
   fs::remove_all(out);
 }
 
@@ -188,6 +195,8 @@ TEST(RunCommand, TheConfigSetsTheWindowAndTheExtractionsAndEveryMistakeNamesItsK
       {"[rigid_path]\nenabled = true\nfix_sigma = 3\n", "rigid_path.fix_sigma: unknown key"},
       {"[rigid_path]\nenabled = true\n[mapper]\npose_lag_s = 4.0\n",
        "rigid_path needs scan matching"},
+      {"[rigid_path]\nenabled = true\n[free_space]\ntiles_across = 16\n",
+       "rigid_path would move the walls off the free-space grid"},
   };
   for (const auto& [text, expected] : mistakes) {
     result = run_cli({"run", "--config", config_with("bad.toml", text), "--duration-s", "1",

@@ -27,6 +27,7 @@
 // dropped (counted either way).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -35,6 +36,7 @@
 #include <Eigen/Geometry>
 
 #include "blockmap/core/arena.hpp"
+#include "blockmap/core/time.hpp"
 #include "blockmap/map/voxel_window.hpp"
 #include "blockmap/msg/plane_patch.hpp"
 #include "blockmap/planes/point_moments.hpp"
@@ -87,6 +89,28 @@ struct PlaneRegistryCounters {
   std::uint64_t reopened = 0;         // final planes seen again (the robot came back)
 };
 
+// When a plane was seen: the stamps of the detections that matched it, as at most kMaxSpans
+// spans of time. Detections less than kJoinGapNs apart are one span (the robot driving past);
+// a longer gap starts another (it came back). When every span is taken, the two with the
+// shortest gap between them become one. The mapper's rigid path moves a final plane by the
+// keyframes of these times only: another pass near it, behind the building, did not draw it.
+struct SeenSpans {
+  static constexpr std::size_t kMaxSpans = 4;
+  static constexpr TimestampNs kJoinGapNs = 20 * kNanosecondsPerSecond;
+  std::array<TimestampNs, kMaxSpans> from_ns{};
+  std::array<TimestampNs, kMaxSpans> to_ns{};
+  std::uint8_t count = 0;
+
+  void add(TimestampNs stamp_ns) noexcept { add_span(stamp_ns, stamp_ns); }
+  void merge(const SeenSpans& other) noexcept;
+  // Whether `stamp_ns` falls in a span, or ends before one by at most `lead_ns` (a detection
+  // holds points drawn before it).
+  [[nodiscard]] bool covers(TimestampNs stamp_ns, TimestampNs lead_ns) const noexcept;
+
+ private:
+  void add_span(TimestampNs from, TimestampNs to) noexcept;
+};
+
 // A plane as a snapshot keeps it (issue 9: the map survives a crash): as reported, and the
 // moments of all its points, which is all a final plane is.
 struct SavedPlane {
@@ -108,8 +132,9 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   // A window tile's samples as it leaves: the live planes they lie on freeze them.
   void on_evicted(const VoxelWindow::EvictedTile& tile) noexcept override;
   // The planes of the latest detection over the window, with the moments of their points.
+  // `seen_ns` is the detection's stamp: the planes it matches were seen then (seen_spans()).
   void update(std::span<const msg::PlanePatch> detected,
-              std::span<const planes::PointMoments> moments) noexcept;
+              std::span<const planes::PointMoments> moments, TimestampNs seen_ns) noexcept;
   // Live planes whose extent lies wholly outside `window_m` (x, y) are finalized.
   void finalize_outside(const Eigen::AlignedBox2d& window_m) noexcept;
   // The end of the run: every live plane is finalized.
@@ -133,6 +158,11 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   [[nodiscard]] std::span<const msg::PlanePatch> final_planes() const noexcept {
     return final_.first(final_count_);
   }
+  // When final plane `index` (of final_planes()) was seen; no spans for a restored plane
+  // (a snapshot keeps none) until it is seen again.
+  [[nodiscard]] const SeenSpans& seen_spans(std::size_t index) const noexcept {
+    return final_seen_[index];
+  }
   // Every plane a consumer of the stream holds now: the final ones, then the live ones as
   // last reported (the building fitter reads the map this way, without a copy).
   template <typename Visit>
@@ -152,7 +182,8 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   [[nodiscard]] const PlaneRegistryCounters& counters() const noexcept { return counters_; }
   [[nodiscard]] std::size_t memory_bytes() const noexcept {
     return live_.size_bytes() + final_.size_bytes() + final_moments_.size_bytes() +
-           changes_.size_bytes() + scratch_2d_.size_bytes() + scratch_hull_.size_bytes();
+           final_seen_.size_bytes() + changes_.size_bytes() + scratch_2d_.size_bytes() +
+           scratch_hull_.size_bytes();
   }
 
  private:
@@ -171,6 +202,7 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
     std::uint8_t frozen_polygon_size = 0;
     Eigen::Vector3d reference_normal = Eigen::Vector3d::UnitZ();  // the reported side
     msg::PlanePatch reported;                                     // as last reported
+    SeenSpans seen;
     // The box of the reported polygon (Eigen's AlignedBox is not trivially destructible).
     Eigen::Vector3d box_min_m = Eigen::Vector3d::Zero();
     Eigen::Vector3d box_max_m = Eigen::Vector3d::Zero();
@@ -185,7 +217,8 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   LivePlane* take_final_matches(const msg::PlanePatch& detected,
                                 const Eigen::AlignedBox3d& detected_box, LivePlane* into) noexcept;
   void remove_final(std::size_t index) noexcept;
-  void store_final(const msg::PlanePatch& plane, const planes::PointMoments& moments) noexcept;
+  void store_final(const msg::PlanePatch& plane, const planes::PointMoments& moments,
+                   const SeenSpans& seen) noexcept;
   // The live plane `detected` continues (the biggest of those it matches, the others merged
   // into it), or nullptr.
   [[nodiscard]] LivePlane* match_and_merge(const msg::PlanePatch& detected) noexcept;
@@ -214,6 +247,7 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   std::size_t live_count_ = 0;
   std::span<msg::PlanePatch> final_;
   std::span<planes::PointMoments> final_moments_;
+  std::span<SeenSpans> final_seen_;
   std::size_t final_count_ = 0;
   std::span<msg::PlaneChange> changes_;
   std::size_t change_count_ = 0;
