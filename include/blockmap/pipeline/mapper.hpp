@@ -84,8 +84,8 @@ enum class PoseSource : std::uint8_t {
 // When the mapper solves the whole run's path (MapperConfig::rigid_path).
 enum class RigidPath : std::uint8_t {
   kOff,
-  kWhereScansAreMatched,  // the default: whenever the level lasers' scans are matched
-  kOn                     // asked for: a config that leaves no scans to match is refused
+  kWhereScansAreMatched,  // the default: scans matched and no free-space grid
+  kOn  // asked for: a config with no scans to match or with a free-space grid is refused
 };
 
 struct MapperConfig {
