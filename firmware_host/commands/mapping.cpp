@@ -177,10 +177,12 @@ void MappingSession::report(std::ostream& err, double data_s) const {
     const localize::PathSmootherCounters& p = mapper_.rigid_path().counters();
     std::snprintf(
         text, sizeof text,
-        "rigid path: %zu keyframes (%llu thinnings), %llu fixes, %llu solves; %llu "
-        "final planes moved by it, %llu fixes dropped waiting\n",
+        "rigid path: %zu keyframes (%llu thinnings), %llu fixes, %zu ties between passes "
+        "(%llu dropped), %llu solves; %llu final planes moved by it, %llu fixes dropped "
+        "waiting\n",
         mapper_.rigid_path().keyframe_count(), static_cast<unsigned long long>(p.thinnings),
-        static_cast<unsigned long long>(p.fixes), static_cast<unsigned long long>(p.solves),
+        static_cast<unsigned long long>(p.fixes), mapper_.rigid_path().tie_count(),
+        static_cast<unsigned long long>(p.ties_dropped), static_cast<unsigned long long>(p.solves),
         static_cast<unsigned long long>(c.planes_moved),
         static_cast<unsigned long long>(c.rigid_path_fixes_dropped));
     err << text;

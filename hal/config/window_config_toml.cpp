@@ -73,6 +73,15 @@ pipeline::MapperConfig parse_window_config(std::string_view text, std::string_vi
     r.bias_time_s = t.positive_or("bias_time_s", r.bias_time_s);
     r.fix_sigma_m = t.positive_or("fix_sigma_m", r.fix_sigma_m);
     r.iterations = static_cast<std::uint32_t>(t.capacity_or("iterations", r.iterations));
+    // Ties between passes (0: none, the path's band alone).
+    r.max_ties = static_cast<std::size_t>(t.non_negative(
+        "max_ties",
+        static_cast<double>(t.integer_or("max_ties", static_cast<std::int64_t>(r.max_ties)))));
+    r.tie_offset_sigma_m = t.positive_or("tie_offset_sigma_m", r.tie_offset_sigma_m);
+    r.tie_angle_sigma_deg = t.positive_or("tie_angle_sigma_deg", r.tie_angle_sigma_deg);
+    r.tie_huber_sigmas = t.positive_or("tie_huber_sigmas", r.tie_huber_sigmas);
+    r.tie_gate_deg = t.positive_or("tie_gate_deg", r.tie_gate_deg);
+    r.cg_iterations = static_cast<std::uint32_t>(t.capacity_or("cg_iterations", r.cg_iterations));
     t.finish();
     if (const std::string problem = localize::validate(r); !problem.empty()) {
       throw ConfigError(std::string(source) + ": " + problem);

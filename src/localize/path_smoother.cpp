@@ -5,6 +5,7 @@
 #include <numbers>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Geometry>
 
 #include "blockmap/core/check.hpp"
 
@@ -75,12 +76,20 @@ std::string validate(const PathSmootherConfig& config) {
   if (config.iterations == 0) {
     return "path smoother: iterations must be at least 1";
   }
+  if (config.max_ties > 0 &&
+      (!positive(config.tie_offset_sigma_m) || !positive(config.tie_angle_sigma_deg) ||
+       !positive(config.tie_huber_sigmas) || !positive(config.tie_gate_deg) ||
+       config.cg_iterations == 0)) {
+    return "path smoother: tie_offset_sigma_m, tie_angle_sigma_deg, tie_huber_sigmas and "
+           "tie_gate_deg must be positive and cg_iterations at least 1 (or max_ties = 0)";
+  }
   return {};
 }
 
 std::size_t PathSmoother::arena_bytes(const PathSmootherConfig& config) noexcept {
   constexpr std::size_t kSlack = 2 * alignof(std::max_align_t);
-  return config.max_keyframes * (sizeof(Keyframe) + sizeof(Blocks)) + kSlack;
+  return config.max_keyframes * (sizeof(Keyframe) + sizeof(Blocks)) +
+         config.max_ties * sizeof(Tie) + 3 * kSlack;
 }
 
 void PathSmoother::init(Arena& arena, const PathSmootherConfig& config) {
@@ -89,12 +98,14 @@ void PathSmoother::init(Arena& arena, const PathSmootherConfig& config) {
   config_ = config;
   keyframes_ = arena.allocate_array<Keyframe>(config.max_keyframes, "localize.path_keyframes");
   blocks_ = arena.allocate_array<Blocks>(config.max_keyframes, "localize.path_normal_equations");
+  ties_ = arena.allocate_array<Tie>(config.max_ties, "localize.path_ties");
   count_ = 0;
+  tie_count_ = 0;
   counters_ = {};
 }
 
 std::size_t PathSmoother::memory_bytes() const noexcept {
-  return keyframes_.size_bytes() + blocks_.size_bytes();
+  return keyframes_.size_bytes() + blocks_.size_bytes() + ties_.size_bytes();
 }
 
 void PathSmoother::add(const Pose2& odometry, const Pose2& drawn,
@@ -284,31 +295,261 @@ void PathSmoother::accumulate_fix(std::size_t i) noexcept {
   vector(blocks_[i].gradient) += keyframe.fix_weight * j.transpose() * residual;
 }
 
-bool PathSmoother::sweep() noexcept {
-  // Block Cholesky along the path: S(i) = D(i) - X(i-1)' S(i-1) X(i-1), X(i) = S(i)^-1 U(i),
-  // w(i) = S(i)^-1 (-g(i) - X(i-1)' y(i-1)); then back: step(i) = w(i) - X(i) step(i+1).
-  Matrix5 previous_s = Matrix5::Zero();
-  Vector5 previous_y = Vector5::Zero();
+bool PathSmoother::tie(std::uint32_t key, const WallLook& earlier, const WallLook& later) noexcept {
+  if (count_ == 0) {
+    return false;
+  }
+  Tie candidate;
+  candidate.key = key;
+  candidate.earlier = earlier;
+  candidate.later = later;
+  // One side: the residual's turn compares the normals' directions.
+  if (earlier.normal.dot(later.normal) < 0.0) {
+    candidate.later.normal = -later.normal;
+  }
+  for (std::size_t i = tie_count_; i-- > 0;) {
+    Tie& kept = ties_[i];
+    if (kept.key == key && later.stamp_ns >= kept.later.stamp_ns &&
+        later.stamp_ns - kept.later.stamp_ns < kSamePassNs) {
+      kept = candidate;
+      ++counters_.ties_refreshed;
+      return true;
+    }
+  }
+  if (tie_count_ == ties_.size()) {
+    ++counters_.ties_dropped;
+    return false;
+  }
+  ties_[tie_count_++] = candidate;
+  ++counters_.ties;
+  return true;
+}
+
+std::size_t PathSmoother::keyframe_nearest(TimestampNs stamp_ns) const noexcept {
+  const auto first = keyframes_.begin();
+  const auto last = first + static_cast<std::ptrdiff_t>(count_);
+  const auto after = std::lower_bound(first, last, stamp_ns, [](const Keyframe& k, TimestampNs t) {
+    return k.odometry.stamp_ns < t;
+  });
+  if (after == first) {
+    return 0;
+  }
+  if (after == last) {
+    return count_ - 1;
+  }
+  const auto index = static_cast<std::size_t>(after - first);
+  const TimestampNs to_after = after->odometry.stamp_ns - stamp_ns;
+  const TimestampNs to_before = stamp_ns - keyframes_[index - 1].odometry.stamp_ns;
+  return to_before <= to_after ? index - 1 : index;
+}
+
+void PathSmoother::linearize_tie(Tie& tie) const noexcept {
+  // Each look moved by its keyframe's correction, drawn -> solved: a turn by
+  // yaw - drawn yaw about the drawn position, then to the solved position.
+  struct Moved {
+    Eigen::Vector2d normal;
+    Eigen::Vector2d point_m;
+    Eigen::Vector2d lever_m;  // from the solved position to the point
+  };
+  const auto move = [this](std::size_t k, const WallLook& look) {
+    const Keyframe& keyframe = keyframes_[k];
+    const double turn_rad = keyframe.state[kYaw] - keyframe.drawn.yaw_rad;
+    const Eigen::Rotation2Dd rotation(turn_rad);
+    const Eigen::Vector2d from_m(keyframe.drawn.x_m, keyframe.drawn.y_m);
+    const Eigen::Vector2d to_m(keyframe.state[kX], keyframe.state[kY]);
+    Moved moved;
+    moved.normal = rotation * look.normal;
+    moved.lever_m = rotation * (look.point_m - from_m);
+    moved.point_m = to_m + moved.lever_m;
+    return moved;
+  };
+  const auto perpendicular = [](const Eigen::Vector2d& v) {
+    return Eigen::Vector2d(-v.y(), v.x());
+  };
+  tie.a = keyframe_nearest(tie.earlier.stamp_ns);
+  tie.b = keyframe_nearest(tie.later.stamp_ns);
+  const Moved a = move(tie.a, tie.earlier);
+  const Moved b = move(tie.b, tie.later);
+  const Eigen::Vector2d apart_m = b.point_m - a.point_m;
+  // Offset: the later look's point from the earlier look's plane; turn: between the normals.
+  tie.residual[0] = a.normal.dot(apart_m);
+  tie.residual[1] =
+      wrap(std::atan2(b.normal.y(), b.normal.x()) - std::atan2(a.normal.y(), a.normal.x()));
+  tie.jacobian_a[0] = -a.normal.x();
+  tie.jacobian_a[1] = -a.normal.y();
+  tie.jacobian_a[2] = perpendicular(a.normal).dot(apart_m) - a.normal.dot(perpendicular(a.lever_m));
+  tie.jacobian_a[3] = 0.0;
+  tie.jacobian_a[4] = 0.0;
+  tie.jacobian_a[5] = -1.0;
+  tie.jacobian_b[0] = a.normal.x();
+  tie.jacobian_b[1] = a.normal.y();
+  tie.jacobian_b[2] = a.normal.dot(perpendicular(b.lever_m));
+  tie.jacobian_b[3] = 0.0;
+  tie.jacobian_b[4] = 0.0;
+  tie.jacobian_b[5] = 1.0;
+  const double sigmas[2] = {config_.tie_offset_sigma_m,
+                            config_.tie_angle_sigma_deg * std::numbers::pi / 180.0};
+  // Looks whose walls turn apart by more than the gate once moved were not drawn with
+  // these keyframes' poses (a filter still settling drew one): the tie is left out.
+  const bool gated = std::abs(tie.residual[1]) > config_.tie_gate_deg * std::numbers::pi / 180.0;
+  for (int r = 0; r < 2; ++r) {
+    if (gated) {
+      tie.weight[r] = 0.0;
+      continue;
+    }
+    // Huber: beyond tie_huber_sigmas the weight falls as 1/|residual|, a constant pull.
+    const double normalized = std::abs(tie.residual[r]) / sigmas[r];
+    const double huber =
+        normalized <= config_.tie_huber_sigmas ? 1.0 : config_.tie_huber_sigmas / normalized;
+    tie.weight[r] = huber / (sigmas[r] * sigmas[r]);
+  }
+}
+
+void PathSmoother::accumulate_tie_gradient(const Tie& tie) noexcept {
+  for (int r = 0; r < 2; ++r) {
+    const double weighted = tie.weight[r] * tie.residual[r];
+    for (int c = 0; c < 3; ++c) {
+      blocks_[tie.a].gradient[c] += tie.jacobian_a[3 * r + c] * weighted;
+      blocks_[tie.b].gradient[c] += tie.jacobian_b[3 * r + c] * weighted;
+    }
+  }
+}
+
+bool PathSmoother::factor_band() noexcept {
+  // Block Cholesky along the path: S(i) = D(i) - X(i-1)' S(i-1) X(i-1), X(i) = S(i)^-1 U(i).
+  // The band is then M' S M, with M the identity and X(i) right of the diagonal.
   for (std::size_t i = 0; i < count_; ++i) {
     Matrix5 s = matrix(blocks_[i].diagonal);
-    Vector5 y = -vector(blocks_[i].gradient);
     if (i > 0) {
       const Eigen::Map<Matrix5> x_before = matrix(blocks_[i - 1].upper);
-      s.noalias() -= x_before.transpose() * previous_s * x_before;
-      y.noalias() -= x_before.transpose() * previous_y;
+      const Eigen::Map<Matrix5> l_before = matrix(blocks_[i - 1].diagonal);
+      const Matrix5 root = l_before.transpose() * x_before;  // S = L L'
+      s.noalias() -= root.transpose() * root;
     }
     const Eigen::LLT<Matrix5> factor(s);
     if (factor.info() != Eigen::Success) {
       return false;
     }
     matrix(blocks_[i].upper) = factor.solve(matrix(blocks_[i].upper));
-    vector(blocks_[i].gradient) = factor.solve(y);
-    previous_s = s;
-    previous_y = y;
+    matrix(blocks_[i].diagonal) = factor.matrixL();
+  }
+  return true;
+}
+
+void PathSmoother::solve_band(Vector5Member in, Vector5Member out) noexcept {
+  // M' u = in forward (u(i) = in(i) - X(i-1)' u(i-1)), then M step = S^-1 u back.
+  Vector5 u_before = Vector5::Zero();
+  for (std::size_t i = 0; i < count_; ++i) {
+    Vector5 u = vector(blocks_[i].*in);
+    if (i > 0) {
+      u.noalias() -= matrix(blocks_[i - 1].upper).transpose() * u_before;
+    }
+    u_before = u;
+    const Eigen::Map<Matrix5> l = matrix(blocks_[i].diagonal);
+    const auto lower = l.triangularView<Eigen::Lower>();
+    Vector5 w = lower.solve(u);
+    lower.transpose().solveInPlace(w);
+    vector(blocks_[i].*out) = w;
   }
   for (std::size_t i = count_ - 1; i-- > 0;) {
-    vector(blocks_[i].gradient).noalias() -=
-        matrix(blocks_[i].upper) * vector(blocks_[i + 1].gradient);
+    vector(blocks_[i].*out).noalias() -= matrix(blocks_[i].upper) * vector(blocks_[i + 1].*out);
+  }
+}
+
+void PathSmoother::multiply_band(Vector5Member in, Vector5Member out) noexcept {
+  // M' (S (M in)), one pass: t(i) = S(i) (in(i) + X(i) in(i+1)); out(i) = t(i) + X(i-1)' t(i-1).
+  Vector5 t_before = Vector5::Zero();
+  for (std::size_t i = 0; i < count_; ++i) {
+    Vector5 m = vector(blocks_[i].*in);
+    if (i + 1 < count_) {
+      m.noalias() += matrix(blocks_[i].upper) * vector(blocks_[i + 1].*in);
+    }
+    const Eigen::Map<Matrix5> l = matrix(blocks_[i].diagonal);
+    const Vector5 root = l.triangularView<Eigen::Lower>().transpose() * m;
+    const Vector5 t = l.triangularView<Eigen::Lower>() * root;
+    Vector5 result = t;
+    if (i > 0) {
+      result.noalias() += matrix(blocks_[i - 1].upper).transpose() * t_before;
+    }
+    vector(blocks_[i].*out) = result;
+    t_before = t;
+  }
+}
+
+void PathSmoother::add_ties_times(Vector5Member in, Vector5Member out) noexcept {
+  for (std::size_t t = 0; t < tie_count_; ++t) {
+    const Tie& tie = ties_[t];
+    for (int r = 0; r < 2; ++r) {
+      double along = 0.0;
+      for (int c = 0; c < 3; ++c) {
+        along += tie.jacobian_a[3 * r + c] * (blocks_[tie.a].*in)[c] +
+                 tie.jacobian_b[3 * r + c] * (blocks_[tie.b].*in)[c];
+      }
+      const double weighted = tie.weight[r] * along;
+      for (int c = 0; c < 3; ++c) {
+        (blocks_[tie.a].*out)[c] += tie.jacobian_a[3 * r + c] * weighted;
+        (blocks_[tie.b].*out)[c] += tie.jacobian_b[3 * r + c] * weighted;
+      }
+    }
+  }
+}
+
+double PathSmoother::dot(Vector5Member a, Vector5Member b) const noexcept {
+  double sum = 0.0;
+  for (std::size_t i = 0; i < count_; ++i) {
+    for (int k = 0; k < 5; ++k) {
+      sum += (blocks_[i].*a)[k] * (blocks_[i].*b)[k];
+    }
+  }
+  return sum;
+}
+
+bool PathSmoother::solve_step() noexcept {
+  // Into `residual`: the right-hand side, -gradient.
+  for (std::size_t i = 0; i < count_; ++i) {
+    vector(blocks_[i].residual) = -vector(blocks_[i].gradient);
+  }
+  if (!factor_band()) {
+    return false;
+  }
+  if (tie_count_ == 0) {
+    solve_band(&Blocks::residual, &Blocks::step);
+    return true;
+  }
+  // Conjugate gradients on (band + ties) step = -gradient, from step 0, the band's factors
+  // as the preconditioner. Stops when r' z has fallen by kTolerance (the step to about six
+  // digits; much less is below rounding and never reached) or after cg_iterations.
+  constexpr double kTolerance = 1e-12;
+  for (std::size_t i = 0; i < count_; ++i) {
+    vector(blocks_[i].step).setZero();
+  }
+  solve_band(&Blocks::residual, &Blocks::preconditioned);
+  for (std::size_t i = 0; i < count_; ++i) {
+    vector(blocks_[i].direction) = vector(blocks_[i].preconditioned);
+  }
+  double rz = dot(&Blocks::residual, &Blocks::preconditioned);
+  const double rz_first = rz;
+  for (std::uint32_t k = 0; k < config_.cg_iterations && rz > kTolerance * rz_first; ++k) {
+    ++counters_.cg_steps;
+    multiply_band(&Blocks::direction, &Blocks::product);
+    add_ties_times(&Blocks::direction, &Blocks::product);
+    const double curvature = dot(&Blocks::direction, &Blocks::product);
+    if (!(curvature > 0.0)) {
+      break;
+    }
+    const double alpha = rz / curvature;
+    for (std::size_t i = 0; i < count_; ++i) {
+      vector(blocks_[i].step) += alpha * vector(blocks_[i].direction);
+      vector(blocks_[i].residual) -= alpha * vector(blocks_[i].product);
+    }
+    solve_band(&Blocks::residual, &Blocks::preconditioned);
+    const double rz_next = dot(&Blocks::residual, &Blocks::preconditioned);
+    const double beta = rz_next / rz;
+    rz = rz_next;
+    for (std::size_t i = 0; i < count_; ++i) {
+      vector(blocks_[i].direction) =
+          vector(blocks_[i].preconditioned) + beta * vector(blocks_[i].direction);
+    }
   }
   return true;
 }
@@ -330,12 +571,16 @@ void PathSmoother::solve() noexcept {
         accumulate_motion(i);
       }
     }
-    if (!sweep()) {
+    for (std::size_t t = 0; t < tie_count_; ++t) {
+      linearize_tie(ties_[t]);
+      accumulate_tie_gradient(ties_[t]);
+    }
+    if (!solve_step()) {
       return;
     }
     for (std::size_t i = 0; i < count_; ++i) {
       for (int k = 0; k < 5; ++k) {
-        keyframes_[i].state[k] += blocks_[i].gradient[k];
+        keyframes_[i].state[k] += blocks_[i].step[k];
       }
       keyframes_[i].state[kYaw] = wrap(keyframes_[i].state[kYaw]);
     }

@@ -676,6 +676,139 @@ void Mapper::move_planes_by_rigid_path() noexcept {
   }
 }
 
+namespace {
+
+// A wall's extent along its own direction (`along`, horizontal) and in height.
+struct WallExtent {
+  double from_m = std::numeric_limits<double>::infinity();
+  double to_m = -std::numeric_limits<double>::infinity();
+  double low_m = std::numeric_limits<double>::infinity();
+  double high_m = -std::numeric_limits<double>::infinity();
+};
+
+WallExtent wall_extent(const msg::PlanePatch& wall, const Eigen::Vector2d& along) noexcept {
+  WallExtent extent;
+  for (std::size_t v = 0; v < wall.polygon_size; ++v) {
+    const Eigen::Vector3d& vertex = wall.polygon_m[v];
+    const double at_m = along.dot(vertex.head<2>());
+    extent.from_m = std::min(extent.from_m, at_m);
+    extent.to_m = std::max(extent.to_m, at_m);
+    extent.low_m = std::min(extent.low_m, vertex.z());
+    extent.high_m = std::max(extent.high_m, vertex.z());
+  }
+  return extent;
+}
+
+double overlap_m(double a_from, double a_to, double b_from, double b_to) noexcept {
+  return std::min(a_to, b_to) - std::max(a_from, b_from);
+}
+
+}  // namespace
+
+void Mapper::tie_walls_to_earlier_passes(std::span<const msg::PlanePatch> detected,
+                                         TimestampNs stamp_ns) noexcept {
+  // A pass's poses put its walls off by the receiver's slow error of that time, up to a
+  // couple of metres, and another pass's by another: the same wall drawn twice lies up to
+  // kGateM apart, parallel to within kGateAngle. It must overlap the earlier drawing by
+  // kMinOverlapM along the wall and in height (the walls of a street's next building are in
+  // line with it, but further on), and the earlier pass must have ended kOtherPassNs before
+  // (a wall left behind by this pass is no earlier pass). Of several, the nearest.
+  constexpr double kGateM = 2.0;
+  const double cos_gate_angle = std::cos(5.0 * std::numbers::pi / 180.0);
+  constexpr double kMinOverlapM = 2.0;
+  constexpr double kMinHeightOverlapM = 0.5;
+  constexpr TimestampNs kOtherPassNs = 2 * map::SeenSpans::kJoinGapNs;
+  // The later look's keyframe: one of this pass, the last half minute.
+  constexpr TimestampNs kThisPassNs = 30 * kNanosecondsPerSecond;
+  const std::span<const msg::PlanePatch> finals = registry_.final_planes();
+  for (const msg::PlanePatch& wall : detected) {
+    if (wall.kind != msg::PlaneKind::kWall || wall.normal.head<2>().norm() < 0.5) {
+      continue;
+    }
+    const Eigen::Vector2d normal = wall.normal.head<2>().normalized();
+    const Eigen::Vector2d along(-normal.y(), normal.x());
+    const WallExtent extent = wall_extent(wall, along);
+    std::size_t best = finals.size();
+    double best_offset_m = kGateM;
+    for (std::size_t j = 0; j < finals.size(); ++j) {
+      const msg::PlanePatch& earlier = finals[j];
+      const map::SeenSpans& seen = registry_.seen_spans(j);
+      if (earlier.kind != msg::PlaneKind::kWall || seen.count == 0 ||
+          stamp_ns - seen.last_ns() < kOtherPassNs ||
+          std::abs(earlier.normal.head<2>().normalized().dot(normal)) < cos_gate_angle) {
+        continue;
+      }
+      const double offset_m = std::abs(earlier.normal.dot(wall.centroid_m) - earlier.d_m);
+      if (offset_m >= best_offset_m) {
+        continue;
+      }
+      const WallExtent before = wall_extent(earlier, along);
+      if (overlap_m(extent.from_m, extent.to_m, before.from_m, before.to_m) < kMinOverlapM ||
+          overlap_m(extent.low_m, extent.high_m, before.low_m, before.high_m) <
+              kMinHeightOverlapM) {
+        continue;
+      }
+      best = j;
+      best_offset_m = offset_m;
+    }
+    if (best == finals.size()) {
+      continue;
+    }
+    const msg::PlanePatch& earlier = finals[best];
+    const map::SeenSpans& seen = registry_.seen_spans(best);
+    localize::WallLook before{0, earlier.normal.head<2>().normalized(),
+                              earlier.centroid_m.head<2>()};
+    localize::WallLook now{0, normal, wall.centroid_m.head<2>()};
+    Eigen::Vector2d before_from_m;
+    Eigen::Vector2d now_from_m;
+    if (!keyframe_that_drew(before.point_m, seen.first_ns(), seen.last_ns(), &seen, before.stamp_ns,
+                            before_from_m) ||
+        !keyframe_that_drew(now.point_m, stamp_ns - kThisPassNs, stamp_ns, nullptr, now.stamp_ns,
+                            now_from_m)) {
+      continue;
+    }
+    // Both looks from the same side: a wall's two faces (or two walls back to back) are not
+    // one surface.
+    if (before.normal.dot(before_from_m - before.point_m) *
+            before.normal.dot(now_from_m - now.point_m) <=
+        0.0) {
+      ++counters_.rigid_path_ties_other_side;
+      continue;
+    }
+    path_.tie(earlier.id, before, now);
+  }
+}
+
+bool Mapper::keyframe_that_drew(const Eigen::Vector2d& point_m, TimestampNs from_ns,
+                                TimestampNs to_ns, const map::SeenSpans* seen,
+                                TimestampNs& stamp_ns, Eigen::Vector2d& from_m) const noexcept {
+  // Within the lasers' reach of the wall's middle, the nearest (it put the most points there).
+  constexpr double kReachM = 30.0;
+  constexpr TimestampNs kLeadNs = 10 * kNanosecondsPerSecond;  // as move_planes_by_rigid_path
+  double best_m2 = kReachM * kReachM;
+  bool found = false;
+  for (std::size_t k = path_.keyframe_count(); k-- > 0;) {
+    const localize::Pose2& drawn = path_.drawn(k);
+    if (drawn.stamp_ns > to_ns) {
+      continue;
+    }
+    if (drawn.stamp_ns < from_ns - kLeadNs) {
+      break;
+    }
+    if (seen != nullptr && !seen->covers(drawn.stamp_ns, kLeadNs)) {
+      continue;
+    }
+    const double distance_m2 = (Eigen::Vector2d(drawn.x_m, drawn.y_m) - point_m).squaredNorm();
+    if (distance_m2 < best_m2) {
+      best_m2 = distance_m2;
+      stamp_ns = drawn.stamp_ns;
+      from_m = Eigen::Vector2d(drawn.x_m, drawn.y_m);
+      found = true;
+    }
+  }
+  return found;
+}
+
 void Mapper::carve_free_space(std::size_t laser, const localize::Pose3& pose,
                               std::span<const Eigen::Vector3f> points_m) noexcept {
   // The laser's position at the scan's first beam: it moves a few decimetres in a scan, less
@@ -716,6 +849,9 @@ void Mapper::extract(TimestampNs stamp_ns) noexcept {
   counters_.sections_replayed += detector_.stats().sections_replayed;
   counters_.sections_still_barren += detector_.stats().sections_still_barren;
   counters_.sections_settled += detector_.stats().sections_settled;
+  if (path_on_) {
+    tie_walls_to_earlier_passes(planes, stamp_ns);
+  }
   registry_.update(planes, detector_.plane_moments(), stamp_ns);
   update_stamp_ns_ = stamp_ns;
   refit_buildings();

@@ -239,6 +239,136 @@ TEST(PathSmoother, TheCorrectionTakesTheDrawnPoseToTheSolvedOne) {
   }
 }
 
+// Ties between passes. Out along a wall and back: the drawn map put the robot where the
+// receiver did, 1 m north on the way out and 1 m south on the way back (its slow error), and
+// the odometry is trusted little (a loose gyroscope), so the fixes alone bend the path
+// with the receiver. The wall 10 m north is drawn twice, 2 m apart. A tie says the two looks
+// are one wall: moved by the solved path, they must agree.
+struct OutAndBack {
+  static constexpr double kSpeedMps = 1.2;
+  static constexpr double kLengthM = 60.0;
+  static constexpr double kWallNorthM = 10.0;
+  static constexpr double kBiasM = 1.0;
+  static constexpr TimestampNs kFixPeriodNs = 250'000'000;
+  static constexpr TimestampNs kTurnNs = 20 * kNanosecondsPerSecond;  // standing at the end
+
+  // The truth at `stamp_ns`, and the receiver's slow error then (north).
+  static Pose2 truth(TimestampNs stamp_ns, double& bias_north_m) {
+    const double t_s = seconds_from_ns(stamp_ns);
+    const double leg_s = kLengthM / kSpeedMps;
+    const double turn_s = seconds_from_ns(kTurnNs);
+    if (t_s <= leg_s) {
+      bias_north_m = kBiasM;
+      return Pose2{stamp_ns, kSpeedMps * t_s, 0.0, 0.0};
+    }
+    if (t_s <= leg_s + turn_s) {
+      const double f = (t_s - leg_s) / turn_s;
+      bias_north_m = kBiasM * (1.0 - 2.0 * f);
+      return Pose2{stamp_ns, kLengthM, 0.0, synthetic::kPi * f};
+    }
+    bias_north_m = -kBiasM;
+    return Pose2{stamp_ns, kLengthM - kSpeedMps * (t_s - leg_s - turn_s), 0.0, synthetic::kPi};
+  }
+  static TimestampNs end_ns() {
+    return static_cast<TimestampNs>((2.0 * kLengthM / kSpeedMps) * 1e9) + kTurnNs;
+  }
+  // When the robot passes x = 30 m on the way out and on the way back.
+  static TimestampNs out_ns() { return static_cast<TimestampNs>(30.0 / kSpeedMps * 1e9); }
+  static TimestampNs back_ns() {
+    return static_cast<TimestampNs>((kLengthM + 30.0) / kSpeedMps * 1e9) + kTurnNs;
+  }
+
+  static PathSmootherConfig loose_odometry() {
+    PathSmootherConfig config;
+    config.yaw_sigma_per_sqrt_m = 0.02;
+    config.across_sigma_per_sqrt_m = 0.1;
+    config.fix_sigma_m = 0.5;
+    return config;
+  }
+
+  // Drives it; a tie when `tied`.
+  static void drive(PathSmoother& smoother, bool tied) {
+    for (TimestampNs t = 0; t <= end_ns(); t += kFixPeriodNs) {
+      double bias_north_m = 0.0;
+      const Pose2 pose = truth(t, bias_north_m);
+      Pose2 drawn = pose;
+      drawn.y_m += bias_north_m;
+      smoother.add(pose, drawn, Eigen::Vector2d(pose.x_m, pose.y_m + bias_north_m));
+      if (t % (10 * kNanosecondsPerSecond) == 0) {
+        smoother.solve();
+      }
+    }
+    if (tied) {
+      EXPECT_TRUE(smoother.tie(7, look(out_ns(), kWallNorthM + kBiasM),
+                               look(back_ns(), kWallNorthM - kBiasM)));
+    }
+    smoother.solve();
+  }
+  static WallLook look(TimestampNs stamp_ns, double north_m) {
+    // Seen from the south: the normal towards the robot.
+    return WallLook{stamp_ns, Eigen::Vector2d(0.0, -1.0), Eigen::Vector2d(30.0, north_m)};
+  }
+  // Where the solved path puts a look: moved by the correction of the keyframe nearest it.
+  static double moved_north_m(const PathSmoother& smoother, const WallLook& look) {
+    std::size_t nearest = 0;
+    for (std::size_t i = 0; i < smoother.keyframe_count(); ++i) {
+      if (std::abs(smoother.pose(i).stamp_ns - look.stamp_ns) <
+          std::abs(smoother.pose(nearest).stamp_ns - look.stamp_ns)) {
+        nearest = i;
+      }
+    }
+    return smoother.correction(nearest).apply(look.point_m).y();
+  }
+};
+
+TEST(PathSmootherTies, AWallSeenOnTwoPassesIsOneWallOnTheSolvedPath) {
+  double apart_m[2] = {};
+  double middle_m[2] = {};
+  for (const bool tied : {false, true}) {
+    SmootherFixture fixture(OutAndBack::loose_odometry());
+    OutAndBack::drive(fixture.smoother, tied);
+    const double out_m =
+        OutAndBack::moved_north_m(fixture.smoother, OutAndBack::look(OutAndBack::out_ns(), 11.0));
+    const double back_m =
+        OutAndBack::moved_north_m(fixture.smoother, OutAndBack::look(OutAndBack::back_ns(), 9.0));
+    apart_m[tied ? 1 : 0] = std::abs(out_m - back_m);
+    middle_m[tied ? 1 : 0] = 0.5 * (out_m + back_m);
+    std::printf("%s: the wall at %.2f m and %.2f m north; %llu conjugate-gradient steps\n",
+                tied ? "tied" : "without the tie", out_m, back_m,
+                static_cast<unsigned long long>(fixture.smoother.counters().cg_steps));
+    EXPECT_EQ(fixture.smoother.tie_count(), tied ? 1u : 0u);
+    EXPECT_EQ(fixture.smoother.counters().cg_steps > 0, tied);
+  }
+  // Without the tie the passes keep a quarter of the receiver's 2 m (2026-12-04: 0.54 m);
+  // with it they are one wall, where the two passes' fixes put it on average (the truth).
+  EXPECT_GT(apart_m[0], 0.4);
+  EXPECT_LT(apart_m[1], 0.1);
+  EXPECT_NEAR(middle_m[1], OutAndBack::kWallNorthM, 0.3);
+}
+
+TEST(PathSmootherTies, OnePassRefreshesItsTieAndAFullSetDropsTheNew) {
+  PathSmootherConfig config;
+  config.max_ties = 2;
+  SmootherFixture fixture(config);
+  PathSmoother& smoother = fixture.smoother;
+  const WallLook earlier{0, Eigen::Vector2d(0.0, 1.0), Eigen::Vector2d(0.0, 5.0)};
+  EXPECT_FALSE(smoother.tie(1, earlier, earlier)) << "no keyframes yet";
+  smoother.add(Pose2{0, 0.0, 0.0, 0.0}, Eigen::Vector2d(0.0, 0.0));
+  const auto later = [](TimestampNs stamp_ns) {
+    // Seen from the other side: the tie turns it to the earlier look's side.
+    return WallLook{stamp_ns, Eigen::Vector2d(0.0, -1.0), Eigen::Vector2d(3.0, 5.2)};
+  };
+  EXPECT_TRUE(smoother.tie(1, earlier, later(100 * kNanosecondsPerSecond)));
+  EXPECT_TRUE(smoother.tie(1, earlier, later(110 * kNanosecondsPerSecond)));  // the same pass
+  EXPECT_EQ(smoother.tie_count(), 1u);
+  EXPECT_EQ(smoother.counters().ties_refreshed, 1u);
+  EXPECT_TRUE(smoother.tie(1, earlier, later(200 * kNanosecondsPerSecond)));  // another pass
+  EXPECT_EQ(smoother.tie_count(), 2u);
+  EXPECT_FALSE(smoother.tie(2, earlier, later(200 * kNanosecondsPerSecond)));
+  EXPECT_EQ(smoother.counters().ties, 2u);
+  EXPECT_EQ(smoother.counters().ties_dropped, 1u);
+}
+
 TEST(PathSmoother, BadConfigurationsAreNamed) {
   PathSmootherConfig config;
   EXPECT_EQ(validate(config), "");
@@ -253,6 +383,11 @@ TEST(PathSmoother, BadConfigurationsAreNamed) {
   config = {};
   config.iterations = 0;
   EXPECT_NE(validate(config).find("iterations"), std::string::npos);
+  config = {};
+  config.tie_offset_sigma_m = 0.0;
+  EXPECT_NE(validate(config).find("tie_offset_sigma_m"), std::string::npos);
+  config.max_ties = 0;  // no ties: their sigmas are not used
+  EXPECT_EQ(validate(config), "");
 }
 
 }  // namespace

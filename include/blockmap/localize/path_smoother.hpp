@@ -18,9 +18,14 @@
 //  - the receiver's slow error: a first-order Gauss-Markov process (stationary sigma
 //    bias_sigma_m, time constant bias_time_s), the model the filter and the simulator use;
 //  - fixes: position plus slow error equals the fix, with the fast part's variance.
-// Each term links a keyframe to itself or to the next one, so the normal equations are
-// block tridiagonal (5 x 5 blocks): Gauss-Newton solves them with a block Cholesky sweep
-// along the path, O(keyframes), in fixed-size Eigen blocks.
+//  - ties between passes: a wall seen on one pass and again minutes later is one wall, so
+//    the later look moved by its keyframe's correction lies on the earlier look moved by
+//    its own (offset along the normal, and the turn). The caller pairs the looks (tie()).
+// Motion, receiver and fix terms link a keyframe to itself or to the next one: the normal
+// equations are block tridiagonal (5 x 5 blocks), and a block Cholesky sweep along the path
+// solves them, O(keyframes), in fixed-size Eigen blocks. A tie links keyframes far apart and
+// breaks the band: with ties, conjugate gradients solve the whole system, preconditioned by
+// the band's factors. A tie adds rank 2 to the band, so about two steps a tie reach the answer.
 //
 // Fixed size: every array is taken from the arena at init. When the keyframes fill, every
 // other one is merged into the one before it (its fix moved there by the path as solved, its
@@ -60,6 +65,29 @@ struct PathSmootherConfig {
   double fix_sigma_m = 6.4;
   // Gauss-Newton steps per solve(); each starts from the last solution.
   std::uint32_t iterations = 3;
+  // Ties between passes: the most kept (a new one is dropped when full, counted), how far
+  // the two looks may disagree after the corrections (sigmas of the offset along the wall's
+  // normal and of its turn), and beyond how many sigmas a tie pulls no harder (Huber: one
+  // tie does not outweigh a pass's fixes). Pairing the looks is the caller's: a wrong pair
+  // within the receiver's slow error can still move a pass by about that error, so the
+  // caller's gate (the mapper's: 2 m, 5 degrees, walls that overlap) keeps pairs plausible.
+  std::size_t max_ties = 256;
+  double tie_offset_sigma_m = 0.3;
+  double tie_angle_sigma_deg = 1.5;
+  double tie_huber_sigmas = 3.0;
+  // A tie whose walls, moved by the solved path, turn apart by more than this is left out of
+  // that Gauss-Newton step: its looks were not drawn with the poses of those keyframes.
+  double tie_gate_deg = 5.0;
+  // Conjugate-gradient steps per Gauss-Newton step when there are ties.
+  std::uint32_t cg_iterations = 64;
+};
+
+// A wall as one pass drew it (in the caller's drawn map): its horizontal unit normal, a point
+// on it, and a time at which a keyframe near it drew it.
+struct WallLook {
+  TimestampNs stamp_ns = 0;
+  Eigen::Vector2d normal = Eigen::Vector2d::UnitX();
+  Eigen::Vector2d point_m = Eigen::Vector2d::Zero();
 };
 
 // Empty when usable, otherwise what is wrong.
@@ -70,7 +98,11 @@ struct PathSmootherCounters {
   std::uint64_t fixes = 0;
   std::uint64_t thinnings = 0;  // the keyframes filled and every other one was merged
   std::uint64_t solves = 0;
-  std::uint64_t refused = 0;  // add() with a time before the last keyframe's
+  std::uint64_t refused = 0;         // add() with a time before the last keyframe's
+  std::uint64_t ties = 0;            // ties between passes added
+  std::uint64_t ties_refreshed = 0;  // a later look of the same pass took a tie's place
+  std::uint64_t ties_dropped = 0;    // the ties were full
+  std::uint64_t cg_steps = 0;        // conjugate-gradient steps, all solves
 };
 
 class PathSmoother {
@@ -93,8 +125,17 @@ class PathSmoother {
   void add(const Pose2& odometry, const Pose2& drawn, const std::optional<Eigen::Vector2d>& fix_m,
            double fix_sigma_scale = 1.0) noexcept;
 
+  // The wall `key` (the caller's name for it) that `earlier` saw is the wall `later` sees,
+  // on another pass. A tie of the same key whose later look is of this pass (less than
+  // kSamePassNs before this one) takes this look instead: the wall grows as the robot passes.
+  // Returns whether the tie is kept (false: the ties are full, or there are no keyframes).
+  static constexpr TimestampNs kSamePassNs = 20 * kNanosecondsPerSecond;
+  bool tie(std::uint32_t key, const WallLook& earlier, const WallLook& later) noexcept;
+  [[nodiscard]] std::size_t tie_count() const noexcept { return tie_count_; }
+
   // Gauss-Newton over the whole path, from the last solution (new keyframes start where the
-  // odometry puts them from the keyframe before). Cost: O(keyframes) per iteration.
+  // odometry puts them from the keyframe before). Cost: O(keyframes) per iteration without
+  // ties; with them, O(keyframes) per conjugate-gradient step.
   void solve() noexcept;
 
   [[nodiscard]] std::size_t keyframe_count() const noexcept { return count_; }
@@ -122,11 +163,31 @@ class PathSmoother {
     double state[5] = {};     // x, y, yaw, bx, by as solved
   };
   // The normal equations' blocks at keyframe i: the diagonal, the one coupling it to i + 1,
-  // and the gradient; overwritten by the sweep's factors.
+  // and the gradient; the band's factors overwrite the first two (L with S = L L', and
+  // X = S^-1 U). The rest are conjugate gradients' vectors at keyframe i.
   struct Blocks {
     double diagonal[25] = {};
     double upper[25] = {};
     double gradient[5] = {};
+    double step[5] = {};
+    double residual[5] = {};
+    double preconditioned[5] = {};
+    double direction[5] = {};
+    double product[5] = {};
+  };
+  using Vector5Member = double (Blocks::*)[5];
+  // A tie and its terms at the last linearization: the keyframes of its looks, the
+  // residual's (offset, turn) Jacobians on their (x, y, yaw), and the weights.
+  struct Tie {
+    std::uint32_t key = 0;
+    WallLook earlier;
+    WallLook later;
+    std::size_t a = 0;
+    std::size_t b = 0;
+    double jacobian_a[6] = {};
+    double jacobian_b[6] = {};
+    double residual[2] = {};
+    double weight[2] = {};
   };
 
   void append(const Pose2& odometry, const Pose2& drawn) noexcept;
@@ -134,12 +195,25 @@ class PathSmoother {
   void accumulate_motion(std::size_t i) noexcept;
   void accumulate_receiver(std::size_t i) noexcept;
   void accumulate_fix(std::size_t i) noexcept;
-  [[nodiscard]] bool sweep() noexcept;
+  void linearize_tie(Tie& tie) const noexcept;
+  void accumulate_tie_gradient(const Tie& tie) noexcept;
+  [[nodiscard]] std::size_t keyframe_nearest(TimestampNs stamp_ns) const noexcept;
+  // The band's block Cholesky in place, then band^-1 of `in` into `out`, and band times `in`.
+  [[nodiscard]] bool factor_band() noexcept;
+  void solve_band(Vector5Member in, Vector5Member out) noexcept;
+  void multiply_band(Vector5Member in, Vector5Member out) noexcept;
+  void add_ties_times(Vector5Member in, Vector5Member out) noexcept;
+  [[nodiscard]] double dot(Vector5Member a, Vector5Member b) const noexcept;
+  // The Gauss-Newton step into each block's `step`: the band's sweep without ties,
+  // preconditioned conjugate gradients with them.
+  [[nodiscard]] bool solve_step() noexcept;
 
   PathSmootherConfig config_;
   std::span<Keyframe> keyframes_;
   std::span<Blocks> blocks_;
+  std::span<Tie> ties_;
   std::size_t count_ = 0;
+  std::size_t tie_count_ = 0;
   PathSmootherCounters counters_;
 };
 

@@ -27,6 +27,7 @@
 // dropped (counted either way).
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <span>
@@ -106,6 +107,13 @@ struct SeenSpans {
   // Whether `stamp_ns` falls in a span, or ends before one by at most `lead_ns` (a detection
   // holds points drawn before it).
   [[nodiscard]] bool covers(TimestampNs stamp_ns, TimestampNs lead_ns) const noexcept;
+  // The first look's stamp and the last's (the spans are in no order); 0 with none.
+  [[nodiscard]] TimestampNs first_ns() const noexcept {
+    return count == 0 ? 0 : *std::min_element(from_ns.begin(), from_ns.begin() + count);
+  }
+  [[nodiscard]] TimestampNs last_ns() const noexcept {
+    return count == 0 ? 0 : *std::max_element(to_ns.begin(), to_ns.begin() + count);
+  }
 
  private:
   void add_span(TimestampNs from, TimestampNs to) noexcept;

@@ -182,8 +182,9 @@ struct MapperCounters {
   std::size_t peak_samples_without_room = 0;
   std::uint64_t scan_planes_rejected = 0;  // detected planes that were a laser's scan plane
   std::uint64_t points = 0;
-  std::uint64_t rigid_path_fixes_dropped = 0;  // fixes that waited for a matched scan too long
-  std::uint64_t planes_moved = 0;              // final planes the rigid path moved
+  std::uint64_t rigid_path_fixes_dropped = 0;    // fixes that waited for a matched scan too long
+  std::uint64_t rigid_path_ties_other_side = 0;  // a wall paired with one seen from behind
+  std::uint64_t planes_moved = 0;                // final planes the rigid path moved
 };
 
 // A plane-list update: what changed since the previous one, at `stamp_ns` (scan time).
@@ -321,6 +322,17 @@ class Mapper {
   void feed_rigid_path(TimestampNs stamp_ns, const localize::Pose2& drawn,
                        const localize::Pose2& odometry) noexcept;
   void move_planes_by_rigid_path() noexcept;
+  // The rigid path's ties between passes: each wall of a detection that continues a final
+  // wall of an earlier pass (the same wall drawn with that pass's poses) ties the keyframes
+  // that drew the two.
+  void tie_walls_to_earlier_passes(std::span<const msg::PlanePatch> detected,
+                                   TimestampNs stamp_ns) noexcept;
+  // The keyframe nearest `point_m` (x, y) among those from `from_ns` to `to_ns` that
+  // `seen` covers (every one when null): its stamp and drawn position; false when there is
+  // none within reach.
+  bool keyframe_that_drew(const Eigen::Vector2d& point_m, TimestampNs from_ns, TimestampNs to_ns,
+                          const map::SeenSpans* seen, TimestampNs& stamp_ns,
+                          Eigen::Vector2d& from_m) const noexcept;
   // A level laser's beams carve the free-space grid, from its position at `pose`.
   void carve_free_space(std::size_t laser, const localize::Pose3& pose,
                         std::span<const Eigen::Vector3f> points_m) noexcept;
