@@ -505,50 +505,54 @@ double PathSmoother::dot(Vector5Member a, Vector5Member b) const noexcept {
 }
 
 bool PathSmoother::solve_step() noexcept {
-  // Into `residual`: the right-hand side, -gradient.
+  // The right-hand side, -gradient, in place: the residual of step 0.
+  constexpr Vector5Member kResidual = &Blocks::gradient;
   for (std::size_t i = 0; i < count_; ++i) {
-    vector(blocks_[i].residual) = -vector(blocks_[i].gradient);
+    vector(blocks_[i].*kResidual) = -vector(blocks_[i].gradient);
   }
   if (!factor_band()) {
     return false;
   }
   if (tie_count_ == 0) {
-    solve_band(&Blocks::residual, &Blocks::step);
+    solve_band(kResidual, &Blocks::step);
     return true;
   }
   // Conjugate gradients on (band + ties) step = -gradient, from step 0, the band's factors
   // as the preconditioner. Stops when r' z has fallen by kTolerance (the step to about six
-  // digits; much less is below rounding and never reached) or after cg_iterations.
+  // digits; much less is below rounding and never reached) or after cg_iterations. The
+  // preconditioned residual z is used up (into the direction) before the product is made.
   constexpr double kTolerance = 1e-12;
+  constexpr Vector5Member kPreconditioned = &Blocks::work;
+  constexpr Vector5Member kProduct = &Blocks::work;
   for (std::size_t i = 0; i < count_; ++i) {
     vector(blocks_[i].step).setZero();
   }
-  solve_band(&Blocks::residual, &Blocks::preconditioned);
+  solve_band(kResidual, kPreconditioned);
+  double rz = dot(kResidual, kPreconditioned);
   for (std::size_t i = 0; i < count_; ++i) {
-    vector(blocks_[i].direction) = vector(blocks_[i].preconditioned);
+    vector(blocks_[i].direction) = vector(blocks_[i].*kPreconditioned);
   }
-  double rz = dot(&Blocks::residual, &Blocks::preconditioned);
   const double rz_first = rz;
   for (std::uint32_t k = 0; k < config_.cg_iterations && rz > kTolerance * rz_first; ++k) {
     ++counters_.cg_steps;
-    multiply_band(&Blocks::direction, &Blocks::product);
-    add_ties_times(&Blocks::direction, &Blocks::product);
-    const double curvature = dot(&Blocks::direction, &Blocks::product);
+    multiply_band(&Blocks::direction, kProduct);
+    add_ties_times(&Blocks::direction, kProduct);
+    const double curvature = dot(&Blocks::direction, kProduct);
     if (!(curvature > 0.0)) {
       break;
     }
     const double alpha = rz / curvature;
     for (std::size_t i = 0; i < count_; ++i) {
       vector(blocks_[i].step) += alpha * vector(blocks_[i].direction);
-      vector(blocks_[i].residual) -= alpha * vector(blocks_[i].product);
+      vector(blocks_[i].*kResidual) -= alpha * vector(blocks_[i].*kProduct);
     }
-    solve_band(&Blocks::residual, &Blocks::preconditioned);
-    const double rz_next = dot(&Blocks::residual, &Blocks::preconditioned);
+    solve_band(kResidual, kPreconditioned);
+    const double rz_next = dot(kResidual, kPreconditioned);
     const double beta = rz_next / rz;
     rz = rz_next;
     for (std::size_t i = 0; i < count_; ++i) {
       vector(blocks_[i].direction) =
-          vector(blocks_[i].preconditioned) + beta * vector(blocks_[i].direction);
+          vector(blocks_[i].*kPreconditioned) + beta * vector(blocks_[i].direction);
     }
   }
   return true;

@@ -28,19 +28,25 @@ std::unique_ptr<Mapper> map_with_the_arena_sealed(Arena& arena, const MapperConf
 }
 
 TEST(MapperBudget, TheDefaultCapacitiesFitSixtyFourMebibytes) {
-  const MapperConfig config = hal::sim::mapper_config_for(hal::sim::load_robot("paper_rmp"));
-  EXPECT_EQ(validate(config), "");
-  EXPECT_LE(Mapper::arena_bytes(config), std::size_t{64} << 20);
-  Arena arena(Mapper::arena_bytes(config));
-  auto mapper = std::make_unique<Mapper>();
-  mapper->init(arena, config);
-  EXPECT_LE(arena.used_bytes(), arena.budget_bytes());
-  // Every owner is in the report.
-  std::size_t reported = 0;
-  for (const Arena::OwnerBytes& owner : arena.owners()) {
-    reported += owner.bytes;
+  // Both robots: the paper's two LMS291 and the modern variant's two TiM571 (longer scans, a
+  // larger scan queue), which the daemon maps from with no --budget-mib.
+  for (const char* robot : {"paper_rmp", "rmp_tim"}) {
+    SCOPED_TRACE(robot);
+    const MapperConfig config = hal::sim::mapper_config_for(hal::sim::load_robot(robot));
+    EXPECT_EQ(validate(config), "");
+    EXPECT_LE(Mapper::arena_bytes(config), std::size_t{64} << 20);
+    Arena arena(Mapper::arena_bytes(config));
+    auto mapper = std::make_unique<Mapper>();
+    mapper->init(arena, config);
+    EXPECT_LE(arena.used_bytes(), arena.budget_bytes());
+    EXPECT_LE(arena.used_bytes(), std::size_t{64} << 20);
+    // Every owner is in the report.
+    std::size_t reported = 0;
+    for (const Arena::OwnerBytes& owner : arena.owners()) {
+      reported += owner.bytes;
+    }
+    EXPECT_EQ(reported, arena.used_bytes());
   }
-  EXPECT_EQ(reported, arena.used_bytes());
 }
 
 TEST(MapperBudget, MappingAllocatesNothing) {

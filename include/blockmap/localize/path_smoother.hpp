@@ -164,16 +164,17 @@ class PathSmoother {
   };
   // The normal equations' blocks at keyframe i: the diagonal, the one coupling it to i + 1,
   // and the gradient; the band's factors overwrite the first two (L with S = L L', and
-  // X = S^-1 U). The rest are conjugate gradients' vectors at keyframe i.
+  // X = S^-1 U), and the negated gradient is conjugate gradients' residual. `direction` and
+  // `work` are their other vectors: `work` holds the preconditioned residual, then the system
+  // times the direction, whose lives do not overlap (70 doubles a keyframe, not 80: the
+  // rmp_tim robot's capacities fit the 64 MiB budget with it).
   struct Blocks {
     double diagonal[25] = {};
     double upper[25] = {};
     double gradient[5] = {};
     double step[5] = {};
-    double residual[5] = {};
-    double preconditioned[5] = {};
     double direction[5] = {};
-    double product[5] = {};
+    double work[5] = {};
   };
   using Vector5Member = double (Blocks::*)[5];
   // A tie and its terms at the last linearization: the keyframes of its looks, the
