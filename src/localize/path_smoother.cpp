@@ -505,10 +505,10 @@ double PathSmoother::dot(Vector5Member a, Vector5Member b) const noexcept {
 }
 
 bool PathSmoother::solve_step() noexcept {
-  // The right-hand side, -gradient, in place: the residual of step 0.
+  // The right-hand side, -gradient, in place of the gradient: the residual of step 0.
   constexpr Vector5Member kResidual = &Blocks::gradient;
   for (std::size_t i = 0; i < count_; ++i) {
-    vector(blocks_[i].*kResidual) = -vector(blocks_[i].gradient);
+    vector(blocks_[i].gradient) *= -1.0;
   }
   if (!factor_band()) {
     return false;
