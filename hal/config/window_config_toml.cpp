@@ -62,6 +62,10 @@ pipeline::MapperConfig parse_window_config(std::string_view text, std::string_vi
       c.rigid_path =
           t.boolean_or("enabled", false) ? pipeline::RigidPath::kOn : pipeline::RigidPath::kOff;
     }
+    // The stream shows the planes where the latest solve puts them (false: as drawn until
+    // the end), reported again when that moves one more than view_change_m.
+    c.rigid_view = t.boolean_or("view", c.rigid_view);
+    c.rigid_view_change_m = t.positive_or("view_change_m", c.rigid_view_change_m);
     localize::PathSmootherConfig& r = c.path;
     r.max_keyframes = t.capacity_or("max_keyframes", r.max_keyframes);
     r.keyframe_spacing_m = t.positive_or("keyframe_spacing_m", r.keyframe_spacing_m);

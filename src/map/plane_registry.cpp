@@ -55,7 +55,8 @@ planes::PointMoments sample_moments(const planes::VoxelSums& sums, double voxel_
 // Between two begin_update(): each plane live before it leaves at most once (finalized,
 // merged or removed) and is changed at most once; each detected plane adds at most one plane
 // and pushes out at most one when the registry is full.
-// At the end of a run with a rigid path, every final plane is moved once (move_final).
+// At the end of a run with a rigid path, every final plane is moved once (move_finals_by);
+// a refreshed view reports each plane at most once (refresh_view), in an update of its own.
 std::size_t changes_per_update(const PlaneRegistryConfig& config) noexcept {
   return std::max(2 * (config.max_live_planes + config.max_detected_planes),
                   config.max_live_planes + config.max_final_planes);
@@ -159,6 +160,7 @@ void PlaneRegistry::init(Arena& arena, const PlaneRegistryConfig& config) {
   final_moments_ =
       arena.allocate_array<planes::PointMoments>(config.max_final_planes, "registry.final");
   final_seen_ = arena.allocate_array<SeenSpans>(config.max_final_planes, "registry.final");
+  final_shown_ = arena.allocate_array<PlaneMove>(config.max_final_planes, "registry.final");
   changes_ = arena.allocate_array<msg::PlaneChange>(changes_per_update(config), "registry.changes");
   constexpr std::size_t kPoints = VoxelWindow::kEvictionChunk + 2 * msg::kMaxPolygonVertices;
   scratch_2d_ = arena.allocate_array<Eigen::Vector2d>(kPoints, "registry.scratch");
@@ -168,8 +170,8 @@ void PlaneRegistry::init(Arena& arena, const PlaneRegistryConfig& config) {
 std::size_t PlaneRegistry::arena_bytes(const PlaneRegistryConfig& config) noexcept {
   constexpr std::size_t kPoints = VoxelWindow::kEvictionChunk + 2 * msg::kMaxPolygonVertices;
   return config.max_live_planes * sizeof(LivePlane) +
-         config.max_final_planes *
-             (sizeof(msg::PlanePatch) + sizeof(planes::PointMoments) + sizeof(SeenSpans)) +
+         config.max_final_planes * (sizeof(msg::PlanePatch) + sizeof(planes::PointMoments) +
+                                    sizeof(SeenSpans) + sizeof(PlaneMove)) +
          changes_per_update(config) * sizeof(msg::PlaneChange) +
          (2 * kPoints + 1) * sizeof(Eigen::Vector2d) + std::size_t{6} * 64;
 }
@@ -310,11 +312,12 @@ PlaneRegistry::LivePlane* PlaneRegistry::take_final_matches(const msg::PlanePatc
     }
     const planes::PointMoments moments = final_moments_[i];
     const SeenSpans seen = final_seen_[i];
+    const PlaneMove shown = final_shown_[i];
     remove_final(i);  // i now holds the next one
     if (into == nullptr) {
       LivePlane* slot = free_slot(final_plane.support);
       if (slot == nullptr) {
-        store_final(final_plane, moments, seen);  // no room to reopen it: it stays final
+        store_final(final_plane, moments, seen, shown);  // no room to reopen it: it stays final
         return nullptr;
       }
       *slot = LivePlane{};
@@ -328,6 +331,7 @@ PlaneRegistry::LivePlane* PlaneRegistry::take_final_matches(const msg::PlanePatc
       slot->reference_normal = final_plane.normal;
       slot->reported = final_plane;
       slot->seen = seen;
+      slot->shown = shown;
       const Eigen::AlignedBox3d box = box_of(polygon_of(final_plane));
       slot->box_min_m = box.min();
       slot->box_max_m = box.max();
@@ -344,7 +348,7 @@ PlaneRegistry::LivePlane* PlaneRegistry::take_final_matches(const msg::PlanePatc
                       {into->frozen_polygon_m.data(), into->frozen_polygon_size},
                       polygon_of(final_plane), joined);
     into->frozen_polygon_m = joined;
-    emit(msg::PlaneChangeKind::kRemoved, final_plane);
+    emit(msg::PlaneChangeKind::kRemoved, final_plane, shown);
     ++counters_.merged;
   }
   return into;
@@ -355,14 +359,16 @@ void PlaneRegistry::remove_final(std::size_t index) noexcept {
   final_[index] = final_[final_count_];
   final_moments_[index] = final_moments_[final_count_];
   final_seen_[index] = final_seen_[final_count_];
+  final_shown_[index] = final_shown_[final_count_];
 }
 
 void PlaneRegistry::store_final(const msg::PlanePatch& plane, const planes::PointMoments& moments,
-                                const SeenSpans& seen) noexcept {
+                                const SeenSpans& seen, const PlaneMove& shown) noexcept {
   if (final_count_ < final_.size()) {
     final_[final_count_] = plane;
     final_moments_[final_count_] = moments;
     final_seen_[final_count_] = seen;
+    final_shown_[final_count_] = shown;
     ++final_count_;
     return;
   }
@@ -377,6 +383,7 @@ void PlaneRegistry::store_final(const msg::PlanePatch& plane, const planes::Poin
     final_[smallest] = plane;
     final_moments_[smallest] = moments;
     final_seen_[smallest] = seen;
+    final_shown_[smallest] = shown;
   }
 }
 
@@ -419,7 +426,7 @@ void PlaneRegistry::absorb(LivePlane& big, LivePlane& small) noexcept {
 }
 
 void PlaneRegistry::remove(LivePlane& plane) noexcept {
-  emit(msg::PlaneChangeKind::kRemoved, plane.reported);
+  emit(msg::PlaneChangeKind::kRemoved, plane.reported, plane.shown);
   plane.in_use = false;
   --live_count_;
 }
@@ -584,7 +591,8 @@ void PlaneRegistry::report(LivePlane& plane, msg::PlaneChangeKind change) noexce
   const Eigen::AlignedBox3d box = box_of(polygon_of(plane.reported));
   plane.box_min_m = box.min();
   plane.box_max_m = box.max();
-  emit(change, plane.reported);
+  plane.shown = view_move(plane.reported, plane.seen);
+  emit(change, plane.reported, plane.shown);
   if (change == msg::PlaneChangeKind::kAdded) {
     ++counters_.added;
   } else if (change == msg::PlaneChangeKind::kChanged) {
@@ -592,17 +600,37 @@ void PlaneRegistry::report(LivePlane& plane, msg::PlaneChangeKind change) noexce
   }
 }
 
-void PlaneRegistry::emit(msg::PlaneChangeKind change, const msg::PlanePatch& plane) noexcept {
+void PlaneRegistry::emit(msg::PlaneChangeKind change, const msg::PlanePatch& plane,
+                         const PlaneMove& shown) noexcept {
   // The capacity is what one update can produce (init()); more is a bug.
   BLOCKMAP_CHECK_MSG(change_count_ < changes_.size(), "more plane changes than one update holds");
-  changes_[change_count_++] = msg::PlaneChange{change, plane};
+  msg::PlaneChange& out = changes_[change_count_++];
+  out = msg::PlaneChange{change, plane};
+  if (!shown.is_identity()) {
+    move_plane(out.plane, shown);
+  }
+}
+
+bool PlaneRegistry::shown_off(const msg::PlanePatch& plane, const PlaneMove& shown,
+                              const PlaneMove& now) const noexcept {
+  const Eigen::Matrix3d shown_rotation = shown.rotation();
+  const Eigen::Matrix3d now_rotation = now.rotation();
+  const auto off_m = [&](const Eigen::Vector3d& p) {
+    return ((shown_rotation * p + shown.shift_m) - (now_rotation * p + now.shift_m)).norm();
+  };
+  if (plane.polygon_size == 0) {
+    return off_m(plane.centroid_m) > view_change_m_;
+  }
+  return std::any_of(plane.polygon_m.begin(), plane.polygon_m.begin() + plane.polygon_size,
+                     [&](const Eigen::Vector3d& vertex) { return off_m(vertex) > view_change_m_; });
 }
 
 void PlaneRegistry::finalize(LivePlane& plane) noexcept {
   combine(plane, plane.reported);
-  emit(msg::PlaneChangeKind::kFinalized, plane.reported);
+  plane.shown = view_move(plane.reported, plane.seen);
+  emit(msg::PlaneChangeKind::kFinalized, plane.reported, plane.shown);
   ++counters_.finalized;
-  store_final(plane.reported, points_of(plane), plane.seen);
+  store_final(plane.reported, points_of(plane), plane.seen, plane.shown);
   plane.in_use = false;
   --live_count_;
 }
@@ -649,23 +677,73 @@ std::size_t PlaneRegistry::save(std::span<SavedPlane> out) noexcept {
 
 void PlaneRegistry::restore(std::span<const SavedPlane> planes) noexcept {
   for (const SavedPlane& saved : planes) {
-    store_final(saved.plane, saved.moments, SeenSpans{});
+    store_final(saved.plane, saved.moments, SeenSpans{}, PlaneMove{});
     next_id_ = std::max(next_id_, saved.plane.id + 1);
   }
 }
 
-void PlaneRegistry::move_final(std::size_t index, const Eigen::Matrix3d& rotation,
-                               const Eigen::Vector3d& shift_m) noexcept {
-  BLOCKMAP_CHECK(index < final_count_);
-  msg::PlanePatch& plane = final_[index];
+void move_plane(msg::PlanePatch& plane, const PlaneMove& move) noexcept {
+  const Eigen::Matrix3d rotation = move.rotation();
   plane.normal = rotation * plane.normal;
-  plane.d_m += plane.normal.dot(shift_m);  // n'.(R x + t) = n.x + n'.t
-  plane.centroid_m = rotation * plane.centroid_m + shift_m;
+  plane.d_m += plane.normal.dot(move.shift_m);  // n'.(R x + t) = n.x + n'.t
+  plane.centroid_m = rotation * plane.centroid_m + move.shift_m;
   for (std::size_t v = 0; v < plane.polygon_size; ++v) {
-    plane.polygon_m[v] = rotation * plane.polygon_m[v] + shift_m;
+    plane.polygon_m[v] = rotation * plane.polygon_m[v] + move.shift_m;
   }
-  final_moments_[index] = final_moments_[index].moved(rotation, shift_m);
-  emit(msg::PlaneChangeKind::kFinalized, plane);
+}
+
+void PlaneRegistry::move_final(std::size_t index, const PlaneMove& move) noexcept {
+  BLOCKMAP_CHECK(index < final_count_);
+  // The same arithmetic as the view's copy (emit()): a plane the stream shows moved by
+  // `move` is, bit for bit, where it now lies, and need not be reported again.
+  const bool shown_there = final_shown_[index] == move;
+  move_plane(final_[index], move);
+  final_moments_[index] = final_moments_[index].moved(move.rotation(), move.shift_m);
+  final_shown_[index] = PlaneMove{};
+  if (!shown_there) {
+    emit(msg::PlaneChangeKind::kFinalized, final_[index], PlaneMove{});
+  }
+}
+
+std::size_t PlaneRegistry::move_finals_by(const PlaneView& view) noexcept {
+  std::size_t moved = 0;
+  for (std::size_t i = 0; i < final_count_; ++i) {
+    const PlaneMove move = view.move_of(final_[i], final_seen_[i]);
+    if (!move.is_identity()) {
+      move_final(i, move);
+      ++moved;
+    } else if (!final_shown_[i].is_identity()) {
+      final_shown_[i] = PlaneMove{};  // the view showed it moved, and it stays as drawn
+      emit(msg::PlaneChangeKind::kFinalized, final_[i], PlaneMove{});
+    }
+  }
+  view_ = nullptr;
+  return moved;
+}
+
+void PlaneRegistry::refresh_view() noexcept {
+  if (view_ == nullptr) {
+    return;
+  }
+  for (std::size_t i = 0; i < final_count_; ++i) {
+    const PlaneMove now = view_move(final_[i], final_seen_[i]);
+    if (shown_off(final_[i], final_shown_[i], now)) {
+      final_shown_[i] = now;
+      emit(msg::PlaneChangeKind::kFinalized, final_[i], now);
+      ++counters_.view_moved;
+    }
+  }
+  for (LivePlane& plane : live_) {
+    if (!plane.in_use || plane.reported.id == 0) {
+      continue;
+    }
+    const PlaneMove now = view_move(plane.reported, plane.seen);
+    if (shown_off(plane.reported, plane.shown, now)) {
+      plane.shown = now;
+      emit(msg::PlaneChangeKind::kChanged, plane.reported, now);
+      ++counters_.view_moved;
+    }
+  }
 }
 
 void PlaneRegistry::finalize_all() noexcept {

@@ -133,6 +133,9 @@ std::string validate(const MapperConfig& config) {
       return "mapper: rigid_path needs scan matching with the localizer's live poses "
              "([scan_matching] enabled, no pose lag)";
     }
+    if (!(config.rigid_view_change_m > 0.0)) {
+      return "mapper: rigid_path view_change_m must be positive";
+    }
     if (config.free_space.tiles_across > 0) {
       return "mapper: rigid_path would move the walls off the free-space grid, which stays "
              "where the scans were drawn ([free_space] tiles_across = 0, or rigid_path off)";
@@ -205,6 +208,9 @@ void Mapper::init(Arena& arena, const MapperConfig& config) {
   window_.init(arena, config.window);
   detector_.init(arena, detector_config(config));
   registry_.init(arena, registry_config(config));
+  if (path_on_ && config.rigid_view) {
+    registry_.set_view(&rigid_path_view_, config.rigid_view_change_m);
+  }
   if (config.fit_buildings) {
     building_fitter_.init(arena, config.buildings, free_space_cells(config));
     free_space_.init(arena, config.free_space);
@@ -608,72 +614,85 @@ void Mapper::feed_rigid_path(TimestampNs stamp_ns, const localize::Pose2& drawn,
   }
   if (stamp_ns >= next_path_solve_ns_) {
     path_.solve();
+    path_solved_ = true;
     next_path_solve_ns_ = stamp_ns + kSolveEveryNs;
   }
 }
 
 void Mapper::move_planes_by_rigid_path() noexcept {
-  // A final plane moves by the corrections of the keyframes that drew it: near it (within
-  // the lasers' reach, nearer ones more: they put more points on it) while it was being seen
-  // (a pass behind the building, as near, did not draw it), averaged: a turn about the
-  // vertical and where its centroid goes. A detection holds points drawn up to kLeadNs
-  // before the plane was first matched (it takes points before it is found).
+  // The final solve has been made (step()); the planes go where it puts them, for good.
+  counters_.planes_moved += registry_.move_finals_by(rigid_path_view_);
+}
+
+std::size_t Mapper::first_keyframe_from(TimestampNs stamp_ns) const noexcept {
+  std::size_t low = 0;
+  std::size_t high = path_.keyframe_count();
+  while (low < high) {
+    const std::size_t middle = low + (high - low) / 2;
+    if (path_.drawn(middle).stamp_ns < stamp_ns) {
+      low = middle + 1;
+    } else {
+      high = middle;
+    }
+  }
+  return low;
+}
+
+map::PlaneMove Mapper::rigid_path_move(const msg::PlanePatch& plane,
+                                       const map::SeenSpans& seen) const noexcept {
+  // A plane moves by the corrections of the keyframes that drew it: near it (within the
+  // lasers' reach, nearer ones more: they put more points on it) while it was being seen (a
+  // pass behind the building, as near, did not draw it), averaged: a turn about the vertical
+  // and where its centroid goes. A detection holds points drawn up to kLeadNs before the
+  // plane was first matched (it takes points before it is found).
   constexpr double kReachM = 30.0;
   constexpr double kNearM = 2.0;
   constexpr TimestampNs kLeadNs = 10 * kNanosecondsPerSecond;
   // Without fixes nothing says where the path lies but its own odometry, which the scans
   // were drawn with already (a log with no GPS): the planes stay.
-  if (path_.counters().fixes == 0) {
-    return;
-  }
-  path_.solve();
   const std::size_t keyframes = path_.keyframe_count();
-  if (keyframes < 2) {
-    return;
+  if (path_.counters().fixes == 0 || path_.counters().solves == 0 || keyframes < 2) {
+    return {};
   }
-  const std::span<const msg::PlanePatch> planes = registry_.final_planes();
-  for (std::size_t i = 0; i < planes.size(); ++i) {
-    const msg::PlanePatch& plane = planes[i];
-    const map::SeenSpans& seen = registry_.seen_spans(i);
-    Eigen::AlignedBox2d extent;
-    for (std::size_t v = 0; v < plane.polygon_size; ++v) {
-      extent.extend(plane.polygon_m[v].head<2>());
-    }
-    if (extent.isEmpty()) {
-      extent.extend(plane.centroid_m.head<2>());
-    }
-    const Eigen::Vector2d centroid_m = plane.centroid_m.head<2>();
-    double weight_sum = 0.0;
-    double yaw_sum_rad = 0.0;
-    Eigen::Vector2d moved_sum_m = Eigen::Vector2d::Zero();
-    for (std::size_t k = 0; k < keyframes; ++k) {
-      const localize::Pose2& drawn = path_.drawn(k);
-      if (seen.count > 0 && !seen.covers(drawn.stamp_ns, kLeadNs)) {
-        continue;
-      }
-      const double distance_m =
-          std::sqrt(extent.squaredExteriorDistance(Eigen::Vector2d(drawn.x_m, drawn.y_m)));
-      if (distance_m > kReachM) {
-        continue;
-      }
-      const double weight = 1.0 / std::max(distance_m * distance_m, kNearM * kNearM);
-      const localize::PlanarCorrection correction = path_.correction(k);
-      weight_sum += weight;
-      yaw_sum_rad += weight * correction.yaw_rad;
-      moved_sum_m += weight * correction.apply(centroid_m);
-    }
-    if (weight_sum <= 0.0) {
+  Eigen::AlignedBox2d extent;
+  for (std::size_t v = 0; v < plane.polygon_size; ++v) {
+    extent.extend(plane.polygon_m[v].head<2>());
+  }
+  if (extent.isEmpty()) {
+    extent.extend(plane.centroid_m.head<2>());
+  }
+  // The keyframes of its spans (they are in time order); all of them for a plane with none.
+  const std::size_t first = seen.count > 0 ? first_keyframe_from(seen.first_ns() - kLeadNs) : 0;
+  const std::size_t end = seen.count > 0 ? first_keyframe_from(seen.last_ns() + 1) : keyframes;
+  const Eigen::Vector2d centroid_m = plane.centroid_m.head<2>();
+  double weight_sum = 0.0;
+  double yaw_sum_rad = 0.0;
+  Eigen::Vector2d moved_sum_m = Eigen::Vector2d::Zero();
+  for (std::size_t k = first; k < end; ++k) {
+    const localize::Pose2& drawn = path_.drawn(k);
+    if (seen.count > 0 && !seen.covers(drawn.stamp_ns, kLeadNs)) {
       continue;
     }
-    const double yaw_rad = yaw_sum_rad / weight_sum;
-    const Eigen::Matrix3d rotation =
-        Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-    const Eigen::Vector2d to_m = moved_sum_m / weight_sum;
-    const Eigen::Vector3d shift_m =
-        Eigen::Vector3d(to_m.x(), to_m.y(), plane.centroid_m.z()) - rotation * plane.centroid_m;
-    registry_.move_final(i, rotation, shift_m);
-    ++counters_.planes_moved;
+    const double distance_m =
+        std::sqrt(extent.squaredExteriorDistance(Eigen::Vector2d(drawn.x_m, drawn.y_m)));
+    if (distance_m > kReachM) {
+      continue;
+    }
+    const double weight = 1.0 / std::max(distance_m * distance_m, kNearM * kNearM);
+    const localize::PlanarCorrection correction = path_.correction(k);
+    weight_sum += weight;
+    yaw_sum_rad += weight * correction.yaw_rad;
+    moved_sum_m += weight * correction.apply(centroid_m);
   }
+  if (weight_sum <= 0.0) {
+    return {};
+  }
+  map::PlaneMove move;
+  move.yaw_rad = yaw_sum_rad / weight_sum;
+  const Eigen::Vector2d to_m = moved_sum_m / weight_sum;
+  move.shift_m = Eigen::Vector3d(to_m.x(), to_m.y(), plane.centroid_m.z()) -
+                 move.rotation() * plane.centroid_m;
+  return move;
 }
 
 namespace {
@@ -784,7 +803,7 @@ bool Mapper::keyframe_that_drew(const Eigen::Vector2d& point_m, TimestampNs from
                                 TimestampNs& stamp_ns, Eigen::Vector2d& from_m) const noexcept {
   // Within the lasers' reach of the wall's middle, the nearest (it put the most points there).
   constexpr double kReachM = 30.0;
-  constexpr TimestampNs kLeadNs = 10 * kNanosecondsPerSecond;  // as move_planes_by_rigid_path
+  constexpr TimestampNs kLeadNs = 10 * kNanosecondsPerSecond;  // as rigid_path_move
   double best_m2 = kReachM * kReachM;
   bool found = false;
   for (std::size_t k = path_.keyframe_count(); k-- > 0;) {
@@ -855,6 +874,10 @@ void Mapper::extract(TimestampNs stamp_ns) noexcept {
   registry_.update(planes, detector_.plane_moments(), stamp_ns);
   update_stamp_ns_ = stamp_ns;
   refit_buildings();
+  if (path_solved_) {
+    path_solved_ = false;
+    view_due_ = path_on_ && config_.rigid_view;
+  }
 }
 
 void Mapper::restore_planes(std::span<const map::SavedPlane> planes) noexcept {
@@ -966,6 +989,17 @@ void Mapper::drop_scans_before_first_pose() noexcept {
 bool Mapper::step() noexcept {
   registry_.begin_update();
   changes_ = {};
+  if (view_due_) {
+    // The path was solved again before the last extraction: the planes where it puts them
+    // now, as an update of its own at that extraction's time.
+    view_due_ = false;
+    registry_.refresh_view();
+    if (!registry_.changes().empty()) {
+      refit_buildings();
+      changes_ = registry_.changes();
+      return true;
+    }
+  }
   release_due();
   drop_scans_before_first_pose();
   TimestampNs oldest_waiting_ns = 0;
@@ -1016,6 +1050,9 @@ bool Mapper::step() noexcept {
   }
   if (!finalized_) {
     finalized_ = true;
+    if (path_on_ && path_.counters().fixes > 0) {
+      path_.solve();  // the whole run's path: the planes finalized now are shown where it puts them
+    }
     registry_.finalize_all();
     if (path_on_) {
       move_planes_by_rigid_path();

@@ -2,6 +2,7 @@
 // their tiles leave, finalized when their region has left, merged, retracted, reopened.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <numbers>
@@ -327,6 +328,117 @@ TEST(SeenSpans, JoinsNearLooksAndWhenFullTheNearestSpans) {
   EXPECT_EQ(bridge.to_ns[0], 40 * kS);
 }
 
+// A view that moves every plane by one shift east, which a test sets (the mapper's rigid path
+// as a stand-in: it moves each plane by its own keyframes).
+class ShiftEast final : public PlaneView {
+ public:
+  [[nodiscard]] PlaneMove move_of(const msg::PlanePatch& /*plane*/,
+                                  const SeenSpans& /*seen*/) const noexcept override {
+    return PlaneMove{0.0, Eigen::Vector3d(east_m, 0.0, 0.0)};
+  }
+  double east_m = 0.0;
+};
+
+// With a view, the stream and the buildings see each plane where the view puts it, while the
+// registry keeps it as drawn: a later look, drawn alike, still matches it.
+TEST(PlaneRegistry, AViewShowsThePlanesMovedWhileTheyStayAsDrawn) {
+  Registry r;
+  ShiftEast view;
+  view.east_m = 2.0;
+  r.registry.set_view(&view, 0.05);
+  const auto added = r.detect({wall(0, 5, 10)});
+  ASSERT_EQ(added.size(), 1u);
+  EXPECT_EQ(added[0].change, msg::PlaneChangeKind::kAdded);
+  EXPECT_NEAR(added[0].plane.centroid_m.x(), 4.5, 1e-9);  // 2.5 drawn, 2 m east
+  double west_m = 1e9;
+  for (std::size_t v = 0; v < added[0].plane.polygon_size; ++v) {
+    west_m = std::min(west_m, added[0].plane.polygon_m[v].x());
+  }
+  EXPECT_NEAR(west_m, 2.0, 1e-9);               // its polygon with it
+  EXPECT_NEAR(added[0].plane.d_m, 10.0, 1e-9);  // y = 10 does not move east
+  // Drawn again where it was: the same plane, nothing to say.
+  EXPECT_TRUE(r.detect({wall(0, 5, 10)}).empty());
+  std::vector<msg::PlanePatch> seen;
+  r.registry.for_each_plane([&](const msg::PlanePatch& plane) { seen.push_back(plane); });
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_NEAR(seen[0].centroid_m.x(), 4.5, 1e-9);
+  r.registry.begin_update();
+  r.registry.finalize_all();
+  ASSERT_EQ(r.registry.changes().size(), 1u);
+  EXPECT_NEAR(r.registry.changes()[0].plane.centroid_m.x(), 4.5, 1e-9);
+  ASSERT_EQ(r.registry.final_planes().size(), 1u);
+  EXPECT_NEAR(r.registry.final_planes()[0].centroid_m.x(), 2.5, 1e-9);  // kept as drawn
+}
+
+// A refreshed view reports again only the planes it moved more than its change distance,
+// live ones as changed and final ones as finalized.
+TEST(PlaneRegistry, ARefreshedViewReportsOnlyThePlanesItMovedFarEnough) {
+  Registry r;
+  ShiftEast view;
+  r.registry.set_view(&view, 0.05);
+  static_cast<void>(r.detect({wall(0, 5, 10), wall(50, 55, 10)}));
+  r.registry.begin_update();
+  r.registry.finalize_outside(Eigen::AlignedBox2d(Eigen::Vector2d(20, 0), Eigen::Vector2d(80, 40)));
+  ASSERT_EQ(r.registry.final_planes().size(), 1u);
+  view.east_m = 0.04;  // within the change distance: nothing to say
+  r.registry.begin_update();
+  r.registry.refresh_view();
+  EXPECT_TRUE(r.registry.changes().empty());
+  view.east_m = 0.3;
+  r.registry.begin_update();
+  r.registry.refresh_view();
+  const std::vector<msg::PlaneChange> changes(r.registry.changes().begin(),
+                                              r.registry.changes().end());
+  ASSERT_EQ(changes.size(), 2u);
+  EXPECT_EQ(count(changes, msg::PlaneChangeKind::kFinalized), 1u);
+  EXPECT_EQ(count(changes, msg::PlaneChangeKind::kChanged), 1u);
+  for (const msg::PlaneChange& c : changes) {
+    const double drawn_x_m = c.change == msg::PlaneChangeKind::kFinalized ? 2.5 : 52.5;
+    EXPECT_NEAR(c.plane.centroid_m.x(), drawn_x_m + 0.3, 1e-9);
+  }
+  EXPECT_EQ(r.registry.counters().view_moved, 2u);
+  r.registry.begin_update();
+  r.registry.refresh_view();  // where it showed them: nothing new
+  EXPECT_TRUE(r.registry.changes().empty());
+}
+
+// At the end the view's moves are made for good: a plane the stream already shows there is
+// not reported again, one shown elsewhere is, and so is one that the view at last leaves as
+// drawn; the view is then off.
+TEST(PlaneRegistry, TheFinalMoveReportsOnlyWhatTheStreamDoesNotShowAlready) {
+  Registry r;
+  ShiftEast view;
+  view.east_m = 1.0;
+  r.registry.set_view(&view, 0.05);
+  static_cast<void>(r.detect({wall(0, 5, 10)}));
+  r.registry.begin_update();
+  r.registry.finalize_all();  // shown 1 m east
+  ASSERT_EQ(r.registry.changes().size(), 1u);
+  r.registry.begin_update();
+  EXPECT_EQ(r.registry.move_finals_by(view), 1u);
+  EXPECT_TRUE(r.registry.changes().empty());  // the stream has it there
+  EXPECT_NEAR(r.registry.final_planes()[0].centroid_m.x(), 3.5, 1e-9);
+  // The view is off now: what it would say no longer moves what is reported.
+  view.east_m = 5.0;
+  r.registry.begin_update();
+  r.registry.refresh_view();
+  EXPECT_TRUE(r.registry.changes().empty());
+
+  Registry other;
+  ShiftEast shown;
+  shown.east_m = 1.0;
+  other.registry.set_view(&shown, 0.05);
+  static_cast<void>(other.detect({wall(0, 5, 10)}));
+  other.registry.begin_update();
+  other.registry.finalize_all();
+  ShiftEast stays;  // the final solve leaves it as drawn
+  other.registry.begin_update();
+  EXPECT_EQ(other.registry.move_finals_by(stays), 0u);
+  ASSERT_EQ(other.registry.changes().size(), 1u);
+  EXPECT_EQ(other.registry.changes()[0].change, msg::PlaneChangeKind::kFinalized);
+  EXPECT_NEAR(other.registry.changes()[0].plane.centroid_m.x(), 2.5, 1e-9);
+}
+
 // The rigid path moves a final plane with its points: the plane, its polygon and its moments
 // turn and shift together, and it is reported final again where it now is.
 TEST(PlaneRegistry, AMovedFinalPlaneTakesItsPointsAlongAndIsFinalAgain) {
@@ -337,9 +449,7 @@ TEST(PlaneRegistry, AMovedFinalPlaneTakesItsPointsAlongAndIsFinalAgain) {
   ASSERT_EQ(r.registry.final_planes().size(), 1u);
   r.registry.begin_update();
   // A quarter turn about the vertical, then 1 m east: the wall y = 10 becomes x = -9.
-  const Eigen::Matrix3d turn =
-      Eigen::AngleAxisd(std::numbers::pi / 2.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  r.registry.move_final(0, turn, Eigen::Vector3d(1.0, 0.0, 0.0));
+  r.registry.move_final(0, PlaneMove{std::numbers::pi / 2.0, Eigen::Vector3d(1.0, 0.0, 0.0)});
   const auto changes = r.registry.changes();
   ASSERT_EQ(changes.size(), 1u);
   EXPECT_EQ(changes[0].change, msg::PlaneChangeKind::kFinalized);

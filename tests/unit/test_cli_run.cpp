@@ -131,7 +131,8 @@ TEST(RunCommand, APoseLagDrawsEveryScanLate) {
   fs::remove_all(out);
 }
 
-// [rigid_path]: the whole run's path solved and the final planes moved with it. On by default
+// [rigid_path]: the whole run's path solved, the planes shown where it puts them as the run
+// goes, and the final planes moved with it. On by default
 // where the scans are matched (a pose lag above leaves none and runs without it); `enabled =
 // false` turns it off. Its mistakes (asked for where it cannot run) are in the table below.
 TEST(RunCommand, TheRigidPathMovesTheFinalPlanesUnlessTurnedOff) {
@@ -142,6 +143,17 @@ TEST(RunCommand, TheRigidPathMovesTheFinalPlanesUnlessTurnedOff) {
   ASSERT_EQ(by_default.status, kExitOk) << by_default.err;
   EXPECT_NE(by_default.err.find("rigid path: "), std::string::npos) << by_default.err;
   EXPECT_EQ(by_default.err.find(" 0 final planes moved"), std::string::npos) << by_default.err;
+  // The stream shows the planes where each solve puts them; `view = false`, as drawn.
+  EXPECT_EQ(by_default.err.find(" 0 times a plane was shown again"), std::string::npos)
+      << by_default.err;
+  const std::string drawn = (out / "drawn.toml").string();
+  std::ofstream(drawn) << "[rigid_path]\nview = false\n";
+  const testing::CliResult as_drawn =
+      run_cli({"run", "--config", drawn, "--duration-s", "12", "--out", (out / "drawn").string()});
+  ASSERT_EQ(as_drawn.status, kExitOk) << as_drawn.err;
+  EXPECT_NE(as_drawn.err.find(" 0 times a plane was shown again"), std::string::npos)
+      << as_drawn.err;
+  EXPECT_EQ(as_drawn.err.find(" 0 final planes moved"), std::string::npos) << as_drawn.err;
   const std::string off = (out / "off.toml").string();
   std::ofstream(off) << "[rigid_path]\nenabled = false\n";
   const testing::CliResult turned_off =
@@ -193,6 +205,7 @@ TEST(RunCommand, TheConfigSetsTheWindowAndTheExtractionsAndEveryMistakeNamesItsK
       {"[free_space]\ncell_size_m = 9\n", "free_space: cell_size_m must be from 0.05 to 5"},
       {"[free_space]\ncells = 9\n", "free_space.cells: unknown key"},
       {"[rigid_path]\nenabled = true\nfix_sigma = 3\n", "rigid_path.fix_sigma: unknown key"},
+      {"[rigid_path]\nview_change_m = 0\n", "rigid_path.view_change_m: must be > 0"},
       {"[rigid_path]\nenabled = true\n[mapper]\npose_lag_s = 4.0\n",
        "rigid_path needs scan matching"},
       {"[rigid_path]\nenabled = true\n[free_space]\ntiles_across = 16\n",

@@ -88,6 +88,7 @@ struct PlaneRegistryCounters {
   std::uint64_t final_dropped = 0;    // final planes full: the smallest was dropped
   std::uint64_t samples_frozen = 0;   // evicted samples kept by a live plane
   std::uint64_t reopened = 0;         // final planes seen again (the robot came back)
+  std::uint64_t view_moved = 0;       // planes reported again where a refreshed view puts them
 };
 
 // When a plane was seen: the stamps of the detections that matched it, as at most kMaxSpans
@@ -119,6 +120,40 @@ struct SeenSpans {
   void add_span(TimestampNs from, TimestampNs to) noexcept;
 };
 
+// A rigid motion about the vertical, p' = R(yaw_rad) p + shift_m: where the mapper's rigid
+// path puts what was drawn with the poses of its time (the identity: as drawn).
+struct PlaneMove {
+  double yaw_rad = 0.0;
+  Eigen::Vector3d shift_m = Eigen::Vector3d::Zero();
+
+  [[nodiscard]] bool is_identity() const noexcept {
+    return yaw_rad == 0.0 && shift_m == Eigen::Vector3d::Zero();
+  }
+  [[nodiscard]] Eigen::Matrix3d rotation() const noexcept {
+    return Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  }
+  [[nodiscard]] bool operator==(const PlaneMove& other) const noexcept {
+    return yaw_rad == other.yaw_rad && shift_m == other.shift_m;
+  }
+};
+
+// `plane` moved by `move`: its normal, offset, centroid and polygon.
+void move_plane(msg::PlanePatch& plane, const PlaneMove& move) noexcept;
+
+// Where the stream shows each plane. The registry keeps its planes as drawn (a later look is
+// drawn with the poses of its time too, and must match them), and asks the view, for each
+// plane it reports, how to move it; the mapper's rigid path is the view.
+class PlaneView {
+ public:
+  PlaneView() = default;
+  PlaneView(const PlaneView&) = default;
+  PlaneView& operator=(const PlaneView&) = default;
+  virtual ~PlaneView() = default;
+  // How to move `plane`, seen at the times `seen` holds (none: a restored plane).
+  [[nodiscard]] virtual PlaneMove move_of(const msg::PlanePatch& plane,
+                                          const SeenSpans& seen) const noexcept = 0;
+};
+
 // A plane as a snapshot keeps it (issue 9: the map survives a crash): as reported, and the
 // moments of all its points, which is all a final plane is.
 struct SavedPlane {
@@ -147,11 +182,23 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   void finalize_outside(const Eigen::AlignedBox2d& window_m) noexcept;
   // The end of the run: every live plane is finalized.
   void finalize_all() noexcept;
-  // Final plane `index` (of final_planes()) moved rigidly, p' = rotation p + shift_m, with its
-  // points' moments, and finalized again where it now is (reported as finalized): the
-  // mapper's rigid path moves what was drawn with the poses of its time.
-  void move_final(std::size_t index, const Eigen::Matrix3d& rotation,
-                  const Eigen::Vector3d& shift_m) noexcept;
+  // Final plane `index` (of final_planes()) moved for good, with its points' moments, and
+  // reported finalized where it now is unless the stream shows it there already.
+  void move_final(std::size_t index, const PlaneMove& move) noexcept;
+  // Every final plane moved for good by `view` (move_final); the view, if one was set, is
+  // then off, since the planes are where it put them. Returns how many moved.
+  std::size_t move_finals_by(const PlaneView& view) noexcept;
+
+  // From now on every plane reported is shown moved by `view` (nullptr: as drawn), and
+  // buildings see the planes so (for_each_plane()). The registry does not own it.
+  void set_view(const PlaneView* view, double change_m) noexcept {
+    view_ = view;
+    view_change_m_ = change_m;
+  }
+  // The view moved: each plane that the stream shows more than the view's change_m off
+  // where the view now puts it (at any vertex) is reported there again, a live one as
+  // changed, a final one as finalized.
+  void refresh_view() noexcept;
 
   // Every plane as it would be if the run ended now (final planes as they are, live ones as
   // finalize_all() would make them), into `out`; how many (at most out.size(), the biggest
@@ -172,15 +219,16 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
     return final_seen_[index];
   }
   // Every plane a consumer of the stream holds now: the final ones, then the live ones as
-  // last reported (the building fitter reads the map this way, without a copy).
+  // last reported, where the view showed them (the building fitter reads the map this way;
+  // a plane is copied only when it is moved).
   template <typename Visit>
   void for_each_plane(Visit&& visit) const {
-    for (const msg::PlanePatch& plane : final_planes()) {
-      visit(plane);
+    for (std::size_t i = 0; i < final_count_; ++i) {
+      visit_shown(final_[i], final_shown_[i], visit);
     }
     for (const LivePlane& plane : live_) {
       if (plane.in_use && plane.reported.id != 0) {
-        visit(plane.reported);
+        visit_shown(plane.reported, plane.shown, visit);
       }
     }
   }
@@ -190,8 +238,8 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   [[nodiscard]] const PlaneRegistryCounters& counters() const noexcept { return counters_; }
   [[nodiscard]] std::size_t memory_bytes() const noexcept {
     return live_.size_bytes() + final_.size_bytes() + final_moments_.size_bytes() +
-           final_seen_.size_bytes() + changes_.size_bytes() + scratch_2d_.size_bytes() +
-           scratch_hull_.size_bytes();
+           final_seen_.size_bytes() + final_shown_.size_bytes() + changes_.size_bytes() +
+           scratch_2d_.size_bytes() + scratch_hull_.size_bytes();
   }
 
  private:
@@ -211,6 +259,7 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
     Eigen::Vector3d reference_normal = Eigen::Vector3d::UnitZ();  // the reported side
     msg::PlanePatch reported;                                     // as last reported
     SeenSpans seen;
+    PlaneMove shown;  // how the stream showed `reported` last (the view's move then)
     // The box of the reported polygon (Eigen's AlignedBox is not trivially destructible).
     Eigen::Vector3d box_min_m = Eigen::Vector3d::Zero();
     Eigen::Vector3d box_max_m = Eigen::Vector3d::Zero();
@@ -226,7 +275,7 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
                                 const Eigen::AlignedBox3d& detected_box, LivePlane* into) noexcept;
   void remove_final(std::size_t index) noexcept;
   void store_final(const msg::PlanePatch& plane, const planes::PointMoments& moments,
-                   const SeenSpans& seen) noexcept;
+                   const SeenSpans& seen, const PlaneMove& shown) noexcept;
   // The live plane `detected` continues (the biggest of those it matches, the others merged
   // into it), or nullptr.
   [[nodiscard]] LivePlane* match_and_merge(const msg::PlanePatch& detected) noexcept;
@@ -242,7 +291,27 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   [[nodiscard]] bool differs(const msg::PlanePatch& a, const msg::PlanePatch& b) const noexcept;
   void report(LivePlane& plane, msg::PlaneChangeKind change) noexcept;
   void finalize(LivePlane& plane) noexcept;
-  void emit(msg::PlaneChangeKind change, const msg::PlanePatch& plane) noexcept;
+  // The change into the update's list, the plane moved as `shown` says.
+  void emit(msg::PlaneChangeKind change, const msg::PlanePatch& plane,
+            const PlaneMove& shown) noexcept;
+  // Where the view puts `plane` now (the identity without a view).
+  [[nodiscard]] PlaneMove view_move(const msg::PlanePatch& plane,
+                                    const SeenSpans& seen) const noexcept {
+    return view_ == nullptr ? PlaneMove{} : view_->move_of(plane, seen);
+  }
+  // Whether the stream, showing `plane` by `shown`, is more than view_change_m_ off `now`.
+  [[nodiscard]] bool shown_off(const msg::PlanePatch& plane, const PlaneMove& shown,
+                               const PlaneMove& now) const noexcept;
+  template <typename Visit>
+  static void visit_shown(const msg::PlanePatch& plane, const PlaneMove& shown, Visit& visit) {
+    if (shown.is_identity()) {
+      visit(plane);
+      return;
+    }
+    msg::PlanePatch moved = plane;
+    move_plane(moved, shown);
+    visit(moved);
+  }
   // The convex hull of two polygons' vertices on the plane (normal, through centroid).
   std::uint8_t hull_on_plane(const Eigen::Vector3d& normal, const Eigen::Vector3d& centroid,
                              std::span<const Eigen::Vector3d> a, std::span<const Eigen::Vector3d> b,
@@ -256,7 +325,10 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   std::span<msg::PlanePatch> final_;
   std::span<planes::PointMoments> final_moments_;
   std::span<SeenSpans> final_seen_;
+  std::span<PlaneMove> final_shown_;
   std::size_t final_count_ = 0;
+  const PlaneView* view_ = nullptr;
+  double view_change_m_ = 0.05;
   std::span<msg::PlaneChange> changes_;
   std::size_t change_count_ = 0;
   std::span<Eigen::Vector2d> scratch_2d_;

@@ -116,6 +116,12 @@ struct MapperConfig {
   // over seeds 1-10, docs/localize.md).
   RigidPath rigid_path = RigidPath::kWhereScansAreMatched;
   localize::PathSmootherConfig path = path_for_matched_scans();
+  // With the rigid path, the stream shows each plane where the latest solve puts it (every
+  // 10 s of scan time; docs/localize.md, The rigid map as it goes), and the buildings are
+  // fitted to the planes so: a plane is reported again when that moves it more than
+  // rigid_view_change_m at any vertex. Off: as drawn until the end's move.
+  bool rigid_view = true;
+  double rigid_view_change_m = 0.05;
   std::size_t max_external_poses = 1024;  // kExternal: the newest poses kept to interpolate
 
   std::array<map::SensorMount, kMaxLasers> laser_mounts{};
@@ -334,6 +340,12 @@ class Mapper {
   void feed_rigid_path(TimestampNs stamp_ns, const localize::Pose2& drawn,
                        const localize::Pose2& odometry) noexcept;
   void move_planes_by_rigid_path() noexcept;
+  // Where the solved path puts a plane drawn with the poses of its time, seen at the times
+  // `seen` holds (the identity before the first solve with a fix, or with no keyframe near).
+  [[nodiscard]] map::PlaneMove rigid_path_move(const msg::PlanePatch& plane,
+                                               const map::SeenSpans& seen) const noexcept;
+  // The first keyframe stamped at or after `stamp_ns` (keyframe_count() when none is).
+  [[nodiscard]] std::size_t first_keyframe_from(TimestampNs stamp_ns) const noexcept;
   // The rigid path's ties between passes: each wall of a detection that continues a final
   // wall of an earlier pass (the same wall drawn with that pass's poses) ties the keyframes
   // that drew the two.
@@ -359,9 +371,22 @@ class Mapper {
    private:
     Mapper* mapper_;
   };
+  // The rigid path as the registry's view of its planes (rigid_path_move).
+  class RigidPathView final : public map::PlaneView {
+   public:
+    explicit RigidPathView(const Mapper& mapper) noexcept : mapper_(&mapper) {}
+    [[nodiscard]] map::PlaneMove move_of(const msg::PlanePatch& plane,
+                                         const map::SeenSpans& seen) const noexcept override {
+      return mapper_->rigid_path_move(plane, seen);
+    }
+
+   private:
+    const Mapper* mapper_;
+  };
 
   MapperConfig config_;
   TileLeaving tile_leaving_{*this};
+  RigidPathView rigid_path_view_{*this};
   localize::Localizer localizer_;
   localize::ScanMatcher matcher_;
   std::array<bool, kMaxLasers> matches_scans_{};  // level lasers, with the localizer's poses
@@ -382,6 +407,11 @@ class Mapper {
   std::size_t path_fix_first_ = 0;
   std::size_t path_fix_count_ = 0;
   TimestampNs next_path_solve_ns_ = 0;
+  // The path was solved since the last extraction; the view is refreshed in the update after
+  // the next one (an extraction's step always returns, so where it lands does not depend on
+  // how the messages were batched between steps).
+  bool path_solved_ = false;
+  bool view_due_ = false;
   // The matcher's frame starts over when the filter's poses snap; the path's odometry goes on
   // across: the new frame is laid where the localizer's dead reckoning carries the last
   // matched pose (path_rebase_ takes matched poses into the path's one frame).
