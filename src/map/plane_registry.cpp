@@ -55,8 +55,10 @@ planes::PointMoments sample_moments(const planes::VoxelSums& sums, double voxel_
 // Between two begin_update(): each plane live before it leaves at most once (finalized,
 // merged or removed) and is changed at most once; each detected plane adds at most one plane
 // and pushes out at most one when the registry is full.
-// At the end of a run with a rigid path, every final plane is moved once (move_finals_by);
-// a refreshed view reports each plane at most once (refresh_view), in an update of its own.
+// The end of a run with a rigid path is one update: each live plane finalized (at most
+// max_live_planes), then each final plane moved once (move_finals_by, at most
+// max_final_planes). A refreshed view reports each plane at most once, in updates of its own
+// (refresh_view).
 std::size_t changes_per_update(const PlaneRegistryConfig& config) noexcept {
   return std::max(2 * (config.max_live_planes + config.max_detected_planes),
                   config.max_live_planes + config.max_final_planes);
@@ -662,14 +664,25 @@ std::size_t PlaneRegistry::save(std::span<SavedPlane> out) noexcept {
       *smallest = SavedPlane{plane, moments};
     }
   };
+  // Where the stream shows them: a consumer that holds the stream holds these, and the
+  // run that resumes from them leaves them there (a plane without seen spans is not moved).
+  const auto keep_shown = [&](msg::PlanePatch plane, const planes::PointMoments& moments,
+                              const PlaneMove& shown) {
+    if (shown.is_identity()) {
+      keep(plane, moments);
+      return;
+    }
+    move_plane(plane, shown);
+    keep(plane, moments.moved(shown.rotation(), shown.shift_m));
+  };
   for (std::size_t i = 0; i < final_count_; ++i) {
-    keep(final_[i], final_moments_[i]);
+    keep_shown(final_[i], final_moments_[i], final_shown_[i]);
   }
   for (const LivePlane& plane : live_) {
     if (plane.in_use && plane.reported.id != 0) {
       msg::PlanePatch now = plane.reported;
       combine(plane, now);
-      keep(now, points_of(plane));
+      keep_shown(now, points_of(plane), plane.shown);
     }
   }
   return count;
@@ -706,6 +719,8 @@ void PlaneRegistry::move_final(std::size_t index, const PlaneMove& move) noexcep
 }
 
 std::size_t PlaneRegistry::move_finals_by(const PlaneView& view) noexcept {
+  // A live plane would keep the move it was shown with after the view is off.
+  BLOCKMAP_CHECK_MSG(live_count_ == 0, "move_finals_by() before finalize_all()");
   std::size_t moved = 0;
   for (std::size_t i = 0; i < final_count_; ++i) {
     const PlaneMove move = view.move_of(final_[i], final_seen_[i]);
@@ -721,19 +736,28 @@ std::size_t PlaneRegistry::move_finals_by(const PlaneView& view) noexcept {
   return moved;
 }
 
-void PlaneRegistry::refresh_view() noexcept {
+bool PlaneRegistry::refresh_view(std::size_t max_changes) noexcept {
   if (view_ == nullptr) {
-    return;
+    refresh_next_ = 0;
+    return true;
   }
-  for (std::size_t i = 0; i < final_count_; ++i) {
-    const PlaneMove now = view_move(final_[i], final_seen_[i]);
-    if (shown_off(final_[i], final_shown_[i], now)) {
-      final_shown_[i] = now;
-      emit(msg::PlaneChangeKind::kFinalized, final_[i], now);
-      ++counters_.view_moved;
+  const std::size_t limit = std::min(max_changes, changes_.size());
+  // The final planes, then the live slots, from where the last call stopped.
+  for (; refresh_next_ < final_count_ + live_.size(); ++refresh_next_) {
+    if (change_count_ >= limit) {
+      return false;
     }
-  }
-  for (LivePlane& plane : live_) {
+    if (refresh_next_ < final_count_) {
+      const std::size_t i = refresh_next_;
+      const PlaneMove now = view_move(final_[i], final_seen_[i]);
+      if (shown_off(final_[i], final_shown_[i], now)) {
+        final_shown_[i] = now;
+        emit(msg::PlaneChangeKind::kFinalized, final_[i], now);
+        ++counters_.view_moved;
+      }
+      continue;
+    }
+    LivePlane& plane = live_[refresh_next_ - final_count_];
     if (!plane.in_use || plane.reported.id == 0) {
       continue;
     }
@@ -744,6 +768,8 @@ void PlaneRegistry::refresh_view() noexcept {
       ++counters_.view_moved;
     }
   }
+  refresh_next_ = 0;
+  return true;
 }
 
 void PlaneRegistry::finalize_all() noexcept {

@@ -650,8 +650,10 @@ map::PlaneMove Mapper::rigid_path_move(const msg::PlanePatch& plane,
   constexpr TimestampNs kLeadNs = 10 * kNanosecondsPerSecond;
   // Without fixes nothing says where the path lies but its own odometry, which the scans
   // were drawn with already (a log with no GPS): the planes stay.
+  // A plane without seen spans comes from a snapshot: the run that saved it placed it.
   const std::size_t keyframes = path_.keyframe_count();
-  if (path_.counters().fixes == 0 || path_.counters().solves == 0 || keyframes < 2) {
+  if (path_.counters().fixes == 0 || path_.counters().solves == 0 || keyframes < 2 ||
+      seen.count == 0) {
     return {};
   }
   Eigen::AlignedBox2d extent;
@@ -661,16 +663,16 @@ map::PlaneMove Mapper::rigid_path_move(const msg::PlanePatch& plane,
   if (extent.isEmpty()) {
     extent.extend(plane.centroid_m.head<2>());
   }
-  // The keyframes of its spans (they are in time order); all of them for a plane with none.
-  const std::size_t first = seen.count > 0 ? first_keyframe_from(seen.first_ns() - kLeadNs) : 0;
-  const std::size_t end = seen.count > 0 ? first_keyframe_from(seen.last_ns() + 1) : keyframes;
+  // The keyframes of its spans (they are in time order).
+  const std::size_t first = first_keyframe_from(seen.first_ns() - kLeadNs);
+  const std::size_t end = first_keyframe_from(seen.last_ns() + 1);
   const Eigen::Vector2d centroid_m = plane.centroid_m.head<2>();
   double weight_sum = 0.0;
   double yaw_sum_rad = 0.0;
   Eigen::Vector2d moved_sum_m = Eigen::Vector2d::Zero();
   for (std::size_t k = first; k < end; ++k) {
     const localize::Pose2& drawn = path_.drawn(k);
-    if (seen.count > 0 && !seen.covers(drawn.stamp_ns, kLeadNs)) {
+    if (!seen.covers(drawn.stamp_ns, kLeadNs)) {
       continue;
     }
     const double distance_m =
@@ -989,11 +991,15 @@ void Mapper::drop_scans_before_first_pose() noexcept {
 bool Mapper::step() noexcept {
   registry_.begin_update();
   changes_ = {};
+  if (view_due_ && final_extracted_) {
+    view_due_ = false;  // the end's solve and move come next, and report every plane moved
+  }
   if (view_due_) {
     // The path was solved again before the last extraction: the planes where it puts them
-    // now, as an update of its own at that extraction's time.
-    view_due_ = false;
-    registry_.refresh_view();
+    // now, as updates of their own at that extraction's time, each within one datagram
+    // (128 entries of at most 427 bytes).
+    constexpr std::size_t kViewChangesPerUpdate = 128;
+    view_due_ = !registry_.refresh_view(kViewChangesPerUpdate);
     if (!registry_.changes().empty()) {
       refit_buildings();
       changes_ = registry_.changes();

@@ -314,9 +314,18 @@ void expect_stream_gives_final_list(const MapperRun& run) {
   for (const msg::PlanePatch& plane : run.final_planes) {
     const auto streamed = run.streamed.find(plane.id);
     ASSERT_NE(streamed, run.streamed.end()) << "plane " << plane.id;
-    EXPECT_EQ(streamed->second.support, plane.support);
-    EXPECT_EQ(streamed->second.d_m, plane.d_m);
-    EXPECT_EQ(streamed->second.polygon_size, plane.polygon_size);
+    // Bit for bit, every field.
+    const msg::PlanePatch& held = streamed->second;
+    EXPECT_EQ(held.kind, plane.kind) << "plane " << plane.id;
+    EXPECT_EQ(held.normal, plane.normal) << "plane " << plane.id;
+    EXPECT_EQ(held.d_m, plane.d_m) << "plane " << plane.id;
+    EXPECT_EQ(held.support, plane.support) << "plane " << plane.id;
+    EXPECT_EQ(held.rmse_m, plane.rmse_m) << "plane " << plane.id;
+    EXPECT_EQ(held.centroid_m, plane.centroid_m) << "plane " << plane.id;
+    ASSERT_EQ(held.polygon_size, plane.polygon_size) << "plane " << plane.id;
+    for (std::size_t v = 0; v < plane.polygon_size; ++v) {
+      EXPECT_EQ(held.polygon_m[v], plane.polygon_m[v]) << "plane " << plane.id << " vertex " << v;
+    }
     const auto last = run.last_change.find(plane.id);
     ASSERT_NE(last, run.last_change.end());
     EXPECT_EQ(last->second, msg::PlaneChangeKind::kFinalized);
@@ -453,6 +462,8 @@ TEST(MapperSim, TheSameMessagesBatchedAnyWayGiveTheSameStream) {
     });
     drain();  // what the end of the input left
     EXPECT_EQ(mapper->counters().scans_refused_full, 0u) << "batches of seed " << seed;
+    // The rigid path's view was refreshed: its updates are in the stream compared.
+    EXPECT_GT(mapper->registry().counters().view_moved, 0u) << "batches of seed " << seed;
     return stream;
   };
   const std::vector<std::uint8_t> one_by_one = stream_of(0);

@@ -368,6 +368,11 @@ TEST(PlaneRegistry, AViewShowsThePlanesMovedWhileTheyStayAsDrawn) {
   EXPECT_NEAR(r.registry.changes()[0].plane.centroid_m.x(), 4.5, 1e-9);
   ASSERT_EQ(r.registry.final_planes().size(), 1u);
   EXPECT_NEAR(r.registry.final_planes()[0].centroid_m.x(), 2.5, 1e-9);  // kept as drawn
+  // A snapshot keeps it where the stream shows it, its points with it.
+  std::array<SavedPlane, 2> saved{};
+  ASSERT_EQ(r.registry.save(saved), 1u);
+  EXPECT_NEAR(saved[0].plane.centroid_m.x(), 4.5, 1e-9);
+  EXPECT_NEAR(saved[0].moments.mean().x(), 4.5, 1e-9);
 }
 
 // A refreshed view reports again only the planes it moved more than its change distance,
@@ -382,11 +387,11 @@ TEST(PlaneRegistry, ARefreshedViewReportsOnlyThePlanesItMovedFarEnough) {
   ASSERT_EQ(r.registry.final_planes().size(), 1u);
   view.east_m = 0.04;  // within the change distance: nothing to say
   r.registry.begin_update();
-  r.registry.refresh_view();
+  r.registry.refresh_view(64);
   EXPECT_TRUE(r.registry.changes().empty());
   view.east_m = 0.3;
   r.registry.begin_update();
-  r.registry.refresh_view();
+  r.registry.refresh_view(64);
   const std::vector<msg::PlaneChange> changes(r.registry.changes().begin(),
                                               r.registry.changes().end());
   ASSERT_EQ(changes.size(), 2u);
@@ -398,7 +403,35 @@ TEST(PlaneRegistry, ARefreshedViewReportsOnlyThePlanesItMovedFarEnough) {
   }
   EXPECT_EQ(r.registry.counters().view_moved, 2u);
   r.registry.begin_update();
-  r.registry.refresh_view();  // where it showed them: nothing new
+  r.registry.refresh_view(64);  // where it showed them: nothing new
+  EXPECT_TRUE(r.registry.changes().empty());
+}
+
+// A refresh hands out at most so many changes an update, and the next call goes on where
+// it stopped: each update of the view fits one datagram.
+TEST(PlaneRegistry, ARefreshGoesOnWhereItsLastUpdateStopped) {
+  Registry r;
+  ShiftEast view;
+  r.registry.set_view(&view, 0.05);
+  static_cast<void>(r.detect({wall(0, 5, 10), wall(0, 5, 30), wall(0, 5, 50)}));
+  view.east_m = 1.0;
+  std::vector<std::uint32_t> ids;
+  for (int call = 0; call < 3; ++call) {
+    r.registry.begin_update();
+    const bool done = r.registry.refresh_view(1);
+    EXPECT_LE(r.registry.changes().size(), 1u);
+    for (const msg::PlaneChange& c : r.registry.changes()) {
+      ids.push_back(c.plane.id);
+    }
+    if (done) {
+      break;
+    }
+  }
+  EXPECT_EQ(ids.size(), 3u);
+  std::sort(ids.begin(), ids.end());
+  EXPECT_EQ(std::unique(ids.begin(), ids.end()), ids.end()) << "each plane once";
+  r.registry.begin_update();
+  EXPECT_TRUE(r.registry.refresh_view(1));
   EXPECT_TRUE(r.registry.changes().empty());
 }
 
@@ -421,7 +454,7 @@ TEST(PlaneRegistry, TheFinalMoveReportsOnlyWhatTheStreamDoesNotShowAlready) {
   // The view is off now: what it would say no longer moves what is reported.
   view.east_m = 5.0;
   r.registry.begin_update();
-  r.registry.refresh_view();
+  r.registry.refresh_view(64);
   EXPECT_TRUE(r.registry.changes().empty());
 
   Registry other;
@@ -449,7 +482,14 @@ TEST(PlaneRegistry, AMovedFinalPlaneTakesItsPointsAlongAndIsFinalAgain) {
   ASSERT_EQ(r.registry.final_planes().size(), 1u);
   r.registry.begin_update();
   // A quarter turn about the vertical, then 1 m east: the wall y = 10 becomes x = -9.
-  r.registry.move_final(0, PlaneMove{std::numbers::pi / 2.0, Eigen::Vector3d(1.0, 0.0, 0.0)});
+  class QuarterTurnThenEast final : public PlaneView {
+   public:
+    [[nodiscard]] PlaneMove move_of(const msg::PlanePatch& /*plane*/,
+                                    const SeenSpans& /*seen*/) const noexcept override {
+      return PlaneMove{std::numbers::pi / 2.0, Eigen::Vector3d(1.0, 0.0, 0.0)};
+    }
+  };
+  EXPECT_EQ(r.registry.move_finals_by(QuarterTurnThenEast{}), 1u);
   const auto changes = r.registry.changes();
   ASSERT_EQ(changes.size(), 1u);
   EXPECT_EQ(changes[0].change, msg::PlaneChangeKind::kFinalized);

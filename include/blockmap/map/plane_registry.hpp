@@ -94,8 +94,8 @@ struct PlaneRegistryCounters {
 // When a plane was seen: the stamps of the detections that matched it, as at most kMaxSpans
 // spans of time. Detections less than kJoinGapNs apart are one span (the robot driving past);
 // a longer gap starts another (it came back). When every span is taken, the two with the
-// shortest gap between them become one. The mapper's rigid path moves a final plane by the
-// keyframes of these times only: another pass near it, behind the building, did not draw it.
+// shortest gap between them become one. The mapper's rigid path shows and moves a plane by
+// the keyframes of these times only: another pass near it, behind the building, did not draw it.
 struct SeenSpans {
   static constexpr std::size_t kMaxSpans = 4;
   static constexpr TimestampNs kJoinGapNs = 20 * kNanosecondsPerSecond;
@@ -137,25 +137,30 @@ struct PlaneMove {
   }
 };
 
-// `plane` moved by `move`: its normal, offset, centroid and polygon.
-void move_plane(msg::PlanePatch& plane, const PlaneMove& move) noexcept;
+// `plane` moved by `move`: its normal, offset, centroid and polygon. Never inlined: the
+// stream's copy and the plane moved for good at the end must come out of the same
+// instructions, bit for bit (a compiler may contract multiply-adds differently per call site).
+[[gnu::noinline]] void move_plane(msg::PlanePatch& plane, const PlaneMove& move) noexcept;
 
 // Where the stream shows each plane. The registry keeps its planes as drawn (a later look is
 // drawn with the poses of its time too, and must match them), and asks the view, for each
 // plane it reports, how to move it; the mapper's rigid path is the view.
 class PlaneView {
  public:
+  virtual ~PlaneView() = default;
+  // How to move `plane`, seen at the times `seen` holds (none: a restored plane, which the
+  // run that saved it placed already).
+  [[nodiscard]] virtual PlaneMove move_of(const msg::PlanePatch& plane,
+                                          const SeenSpans& seen) const noexcept = 0;
+
+ protected:
   PlaneView() = default;
   PlaneView(const PlaneView&) = default;
   PlaneView& operator=(const PlaneView&) = default;
-  virtual ~PlaneView() = default;
-  // How to move `plane`, seen at the times `seen` holds (none: a restored plane).
-  [[nodiscard]] virtual PlaneMove move_of(const msg::PlanePatch& plane,
-                                          const SeenSpans& seen) const noexcept = 0;
 };
 
-// A plane as a snapshot keeps it (issue 9: the map survives a crash): as reported, and the
-// moments of all its points, which is all a final plane is.
+// A plane as a snapshot keeps it (issue 9: the map survives a crash): where the stream shows
+// it, and the moments of all its points there, which is all a final plane is.
 struct SavedPlane {
   msg::PlanePatch plane;
   planes::PointMoments moments;
@@ -182,11 +187,10 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   void finalize_outside(const Eigen::AlignedBox2d& window_m) noexcept;
   // The end of the run: every live plane is finalized.
   void finalize_all() noexcept;
-  // Final plane `index` (of final_planes()) moved for good, with its points' moments, and
-  // reported finalized where it now is unless the stream shows it there already.
-  void move_final(std::size_t index, const PlaneMove& move) noexcept;
-  // Every final plane moved for good by `view` (move_final); the view, if one was set, is
-  // then off, since the planes are where it put them. Returns how many moved.
+  // After finalize_all(): every final plane moved for good by `view`, with its points'
+  // moments, and reported finalized where it now is unless the stream shows it there
+  // already; the view, if one was set, is then off, since the planes are where it put them.
+  // Returns how many moved.
   std::size_t move_finals_by(const PlaneView& view) noexcept;
 
   // From now on every plane reported is shown moved by `view` (nullptr: as drawn), and
@@ -197,12 +201,14 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   }
   // The view moved: each plane that the stream shows more than the view's change_m off
   // where the view now puts it (at any vertex) is reported there again, a live one as
-  // changed, a final one as finalized.
-  void refresh_view() noexcept;
+  // changed, a final one as finalized. At most `max_changes` an update, so that one fits a
+  // datagram: false while planes are left to look at, which the next call goes on with
+  // (nothing else may change the registry in between).
+  bool refresh_view(std::size_t max_changes) noexcept;
 
   // Every plane as it would be if the run ended now (final planes as they are, live ones as
-  // finalize_all() would make them), into `out`; how many (at most out.size(), the biggest
-  // first when more). The registry is left as it was.
+  // finalize_all() would make them), where the stream shows it, into `out`; how many (at
+  // most out.size(), the biggest first when more). The registry is left as it was.
   [[nodiscard]] std::size_t save(std::span<SavedPlane> out) noexcept;
   // Before the first update: the saved planes become final planes (the robot may be anywhere
   // now; seen again, a plane is reopened under its id), and new ids continue after theirs.
@@ -302,6 +308,7 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   // Whether the stream, showing `plane` by `shown`, is more than view_change_m_ off `now`.
   [[nodiscard]] bool shown_off(const msg::PlanePatch& plane, const PlaneMove& shown,
                                const PlaneMove& now) const noexcept;
+  void move_final(std::size_t index, const PlaneMove& move) noexcept;
   template <typename Visit>
   static void visit_shown(const msg::PlanePatch& plane, const PlaneMove& shown, Visit& visit) {
     if (shown.is_identity()) {
@@ -329,6 +336,7 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   std::size_t final_count_ = 0;
   const PlaneView* view_ = nullptr;
   double view_change_m_ = 0.05;
+  std::size_t refresh_next_ = 0;  // where refresh_view() goes on: finals, then live slots
   std::span<msg::PlaneChange> changes_;
   std::size_t change_count_ = 0;
   std::span<Eigen::Vector2d> scratch_2d_;

@@ -42,7 +42,8 @@ struct PlanePatch {
 
 // What happened to a plane of the mapper's list, as its stream reports it (a consumer applies
 // the changes by id): new, updated while its region is still mapped, final (its region left
-// the mapper's window; it will not change again), or removed (merged into another plane, or
+// the mapper's window; reported again only when the robot comes back to it or the rigid
+// path's solve moves it), or removed (merged into another plane, or
 // no longer seen in what the window holds: a consumer drops it; its id never comes back).
 enum class PlaneChangeKind : std::uint8_t {
   kAdded = 1,

@@ -341,7 +341,8 @@ class Mapper {
                        const localize::Pose2& odometry) noexcept;
   void move_planes_by_rigid_path() noexcept;
   // Where the solved path puts a plane drawn with the poses of its time, seen at the times
-  // `seen` holds (the identity before the first solve with a fix, or with no keyframe near).
+  // `seen` holds (the identity before the path has fixes and a solve, with no keyframe near,
+  // or for a plane from a snapshot, which has no spans).
   [[nodiscard]] map::PlaneMove rigid_path_move(const msg::PlanePatch& plane,
                                                const map::SeenSpans& seen) const noexcept;
   // The first keyframe stamped at or after `stamp_ns` (keyframe_count() when none is).

@@ -7,7 +7,8 @@
 //   offset 4   int64    the update's time, ns (the run's time base)
 //   offset 12  uint16   number of entries
 //   offset 14  entries, each:
-//     uint8   change: 1 added, 2 changed, 3 finalized (no more changes will come)
+//     uint8   change: 1 added, 2 changed, 3 finalized (its region left the window; again
+//             when the robot comes back or the rigid path's solve moves it)
 //     uint8   kind: 0 wall, 1 roof, 2 ground, 3 other
 //     uint32  plane id (a consumer applies changes by id)
 //     float32 x 4   normal (unit), d (m): normal . x = d
