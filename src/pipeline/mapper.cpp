@@ -808,11 +808,9 @@ bool Mapper::keyframe_that_drew(const Eigen::Vector2d& point_m, TimestampNs from
   constexpr TimestampNs kLeadNs = 10 * kNanosecondsPerSecond;  // as rigid_path_move
   double best_m2 = kReachM * kReachM;
   bool found = false;
-  for (std::size_t k = path_.keyframe_count(); k-- > 0;) {
+  // Back from the last keyframe of the time (the keyframes are in time order).
+  for (std::size_t k = first_keyframe_from(to_ns + 1); k-- > 0;) {
     const localize::Pose2& drawn = path_.drawn(k);
-    if (drawn.stamp_ns > to_ns) {
-      continue;
-    }
     if (drawn.stamp_ns < from_ns - kLeadNs) {
       break;
     }

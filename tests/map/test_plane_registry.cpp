@@ -438,15 +438,20 @@ TEST(PlaneRegistry, ARefreshGoesOnWhereItsLastUpdateStopped) {
 // At the end the view's moves are made for good: a plane the stream already shows there is
 // not reported again, one shown elsewhere is, and so is one that the view at last leaves as
 // drawn; the view is then off.
-TEST(PlaneRegistry, TheFinalMoveReportsOnlyWhatTheStreamDoesNotShowAlready) {
-  Registry r;
-  ShiftEast view;
-  view.east_m = 1.0;
+// One wall, finalized with `view` showing it `east_m` east.
+void finalize_a_wall_shown_east(Registry& r, ShiftEast& view, double east_m) {
+  view.east_m = east_m;
   r.registry.set_view(&view, 0.05);
   static_cast<void>(r.detect({wall(0, 5, 10)}));
   r.registry.begin_update();
-  r.registry.finalize_all();  // shown 1 m east
+  r.registry.finalize_all();
   ASSERT_EQ(r.registry.changes().size(), 1u);
+}
+
+TEST(PlaneRegistry, TheFinalMoveReportsOnlyWhatTheStreamDoesNotShowAlready) {
+  Registry r;
+  ShiftEast view;
+  finalize_a_wall_shown_east(r, view, 1.0);
   r.registry.begin_update();
   EXPECT_EQ(r.registry.move_finals_by(view), 1u);
   EXPECT_TRUE(r.registry.changes().empty());  // the stream has it there
@@ -459,11 +464,7 @@ TEST(PlaneRegistry, TheFinalMoveReportsOnlyWhatTheStreamDoesNotShowAlready) {
 
   Registry other;
   ShiftEast shown;
-  shown.east_m = 1.0;
-  other.registry.set_view(&shown, 0.05);
-  static_cast<void>(other.detect({wall(0, 5, 10)}));
-  other.registry.begin_update();
-  other.registry.finalize_all();
+  finalize_a_wall_shown_east(other, shown, 1.0);
   ShiftEast stays;  // the final solve leaves it as drawn
   other.registry.begin_update();
   EXPECT_EQ(other.registry.move_finals_by(stays), 0u);
