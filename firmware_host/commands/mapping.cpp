@@ -188,6 +188,19 @@ void MappingSession::report(std::ostream& err, double data_s) const {
         static_cast<unsigned long long>(c.rigid_path_fixes_dropped));
     err << text;
   }
+  // Each capacity against the most it held, for sizing a robot's config (config/README.md).
+  const planes::PlanesConfig& detector = mapper_.detector().config();
+  std::snprintf(text, sizeof text,
+                "capacities, most used of: section planes %zu of %zu ([planes] max_patches), "
+                "planes of an extraction %zu of %zu (max_planes), detector blocks %zu of %zu; "
+                "live planes %zu of %zu, changes of an update %zu of %zu, final planes %zu of "
+                "%zu\n",
+                c.peak_section_planes, detector.max_patches, c.peak_detected_planes,
+                detector.max_planes, c.peak_blocks, planes::block_capacity(detector), r.peak_live,
+                mapper_.registry().live_capacity(), r.peak_changes,
+                mapper_.registry().change_capacity(), mapper_.final_planes().size(),
+                mapper_.registry().final_capacity());
+  err << text;
   if (c.peak_samples_without_room > 0) {
     std::snprintf(text, sizeof text,
                   "mapper: the detector had no room for up to %zu of the window's samples at "

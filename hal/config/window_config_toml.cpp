@@ -124,6 +124,17 @@ pipeline::MapperConfig parse_window_config(std::string_view text, std::string_vi
       throw ConfigError(std::string(source) + ": " + problem);
     }
   }
+  if (auto table = root.table("registry")) {
+    TableReader& t = *table;
+    // The plane registry's capacities (docs/mapper.md, Memory): the planes in the window, and
+    // those that left it, which a long mission over new ground fills.
+    c.registry.max_live_planes = t.capacity_or("max_live_planes", c.registry.max_live_planes);
+    c.registry.max_final_planes = t.capacity_or("max_final_planes", c.registry.max_final_planes);
+    t.finish();
+    if (const std::string problem = map::validate(c.registry); !problem.empty()) {
+      throw ConfigError(std::string(source) + ": " + problem);
+    }
+  }
   if (auto table = root.table("mapper")) {
     TableReader& t = *table;
     // Seconds of scan time between two plane extractions: the plane list's update period,

@@ -59,9 +59,12 @@ planes::PointMoments sample_moments(const planes::VoxelSums& sums, double voxel_
 // max_live_planes), then each final plane moved once (move_finals_by, at most
 // max_final_planes). A refreshed view reports each plane at most once, in updates of its own
 // (refresh_view).
+// What is beyond that bound (final planes joining a live one, or dropped from a full list)
+// is kExtraChangesPerUpdate at most, on top.
 std::size_t changes_per_update(const PlaneRegistryConfig& config) noexcept {
   return std::max(2 * (config.max_live_planes + config.max_detected_planes),
-                  config.max_live_planes + config.max_final_planes);
+                  config.max_live_planes + config.max_final_planes) +
+         PlaneRegistry::kExtraChangesPerUpdate;
 }
 
 }  // namespace
@@ -312,6 +315,10 @@ PlaneRegistry::LivePlane* PlaneRegistry::take_final_matches(const msg::PlanePatc
       ++i;
       continue;
     }
+    if (into != nullptr && !take_extra_change()) {
+      ++i;  // no room in this update to report it removed: it joins at the next one
+      continue;
+    }
     const planes::PointMoments moments = final_moments_[i];
     const SeenSpans seen = final_seen_[i];
     const PlaneMove shown = final_shown_[i];
@@ -319,7 +326,8 @@ PlaneRegistry::LivePlane* PlaneRegistry::take_final_matches(const msg::PlanePatc
     if (into == nullptr) {
       LivePlane* slot = free_slot(final_plane.support);
       if (slot == nullptr) {
-        store_final(final_plane, moments, seen, shown);  // no room to reopen it: it stays final
+        // No room to reopen it: it stays final (in the place it just left).
+        static_cast<void>(store_final(final_plane, moments, seen, shown));
         return nullptr;
       }
       *slot = LivePlane{};
@@ -364,29 +372,46 @@ void PlaneRegistry::remove_final(std::size_t index) noexcept {
   final_shown_[index] = final_shown_[final_count_];
 }
 
-void PlaneRegistry::store_final(const msg::PlanePatch& plane, const planes::PointMoments& moments,
+bool PlaneRegistry::store_final(const msg::PlanePatch& plane, const planes::PointMoments& moments,
                                 const SeenSpans& seen, const PlaneMove& shown) noexcept {
   if (final_count_ < final_.size()) {
-    final_[final_count_] = plane;
-    final_moments_[final_count_] = moments;
-    final_seen_[final_count_] = seen;
-    final_shown_[final_count_] = shown;
-    ++final_count_;
-    return;
+    put_final(final_count_++, plane, moments, seen, shown);
+    return true;
   }
   ++counters_.final_dropped;
-  const auto smallest = static_cast<std::size_t>(
-      std::min_element(final_.begin(), final_.end(),
+  const std::size_t smallest = smallest_final();
+  if (!(final_[smallest].support < plane.support) || !take_extra_change()) {
+    return false;
+  }
+  emit(msg::PlaneChangeKind::kRemoved, final_[smallest], final_shown_[smallest]);
+  put_final(smallest, plane, moments, seen, shown);
+  return true;
+}
+
+std::size_t PlaneRegistry::smallest_final() const noexcept {
+  return static_cast<std::size_t>(
+      std::min_element(final_.begin(), final_.begin() + static_cast<std::ptrdiff_t>(final_count_),
                        [](const msg::PlanePatch& a, const msg::PlanePatch& b) {
                          return a.support < b.support;
                        }) -
       final_.begin());
-  if (final_[smallest].support < plane.support) {
-    final_[smallest] = plane;
-    final_moments_[smallest] = moments;
-    final_seen_[smallest] = seen;
-    final_shown_[smallest] = shown;
+}
+
+void PlaneRegistry::put_final(std::size_t index, const msg::PlanePatch& plane,
+                              const planes::PointMoments& moments, const SeenSpans& seen,
+                              const PlaneMove& shown) noexcept {
+  final_[index] = plane;
+  final_moments_[index] = moments;
+  final_seen_[index] = seen;
+  final_shown_[index] = shown;
+}
+
+bool PlaneRegistry::take_extra_change() noexcept {
+  if (extra_changes_ == kExtraChangesPerUpdate) {
+    return false;
   }
+  ++extra_changes_;
+  return true;
 }
 
 void PlaneRegistry::absorb(LivePlane& big, LivePlane& small) noexcept {
@@ -538,6 +563,7 @@ void PlaneRegistry::update(std::span<const msg::PlanePatch> detected,
       report(plane, msg::PlaneChangeKind::kChanged);
     }
   }
+  counters_.peak_live = std::max(counters_.peak_live, live_count_);
 }
 
 planes::PointMoments PlaneRegistry::points_of(const LivePlane& plane) noexcept {
@@ -607,6 +633,7 @@ void PlaneRegistry::emit(msg::PlaneChangeKind change, const msg::PlanePatch& pla
   // The capacity is what one update can produce (init()); more is a bug.
   BLOCKMAP_CHECK_MSG(change_count_ < changes_.size(), "more plane changes than one update holds");
   msg::PlaneChange& out = changes_[change_count_++];
+  counters_.peak_changes = std::max(counters_.peak_changes, change_count_);
   out = msg::PlaneChange{change, plane};
   if (!shown.is_identity()) {
     move_plane(out.plane, shown);
@@ -630,9 +657,11 @@ bool PlaneRegistry::shown_off(const msg::PlanePatch& plane, const PlaneMove& sho
 void PlaneRegistry::finalize(LivePlane& plane) noexcept {
   combine(plane, plane.reported);
   plane.shown = view_move(plane.reported, plane.seen);
-  emit(msg::PlaneChangeKind::kFinalized, plane.reported, plane.shown);
   ++counters_.finalized;
-  store_final(plane.reported, points_of(plane), plane.seen, plane.shown);
+  const bool kept = store_final(plane.reported, points_of(plane), plane.seen, plane.shown);
+  // Left out of a full final list: the stream drops it too.
+  emit(kept ? msg::PlaneChangeKind::kFinalized : msg::PlaneChangeKind::kRemoved, plane.reported,
+       plane.shown);
   plane.in_use = false;
   --live_count_;
 }
@@ -690,7 +719,17 @@ std::size_t PlaneRegistry::save(std::span<SavedPlane> out) noexcept {
 
 void PlaneRegistry::restore(std::span<const SavedPlane> planes) noexcept {
   for (const SavedPlane& saved : planes) {
-    store_final(saved.plane, saved.moments, SeenSpans{}, PlaneMove{});
+    // Before any update: nothing to report in. A full list keeps the biggest (counted); the
+    // run before reported the planes left out, and this run's stream does not remove them.
+    if (final_count_ < final_.size()) {
+      put_final(final_count_++, saved.plane, saved.moments, SeenSpans{}, PlaneMove{});
+    } else if (const std::size_t smallest = smallest_final();
+               final_[smallest].support < saved.plane.support) {
+      ++counters_.final_dropped;
+      put_final(smallest, saved.plane, saved.moments, SeenSpans{}, PlaneMove{});
+    } else {
+      ++counters_.final_dropped;
+    }
     next_id_ = std::max(next_id_, saved.plane.id + 1);
   }
 }

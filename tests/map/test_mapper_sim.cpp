@@ -160,7 +160,7 @@ MapperRun map_world(const std::string& world, PoseSource poses, double duration_
                     const localize::ScanMatchConfig* scan_matching = nullptr,
                     const map::VoxelWindowConfig* window = nullptr,
                     RigidPath rigid_path = RigidPath::kWhereScansAreMatched, int laps = 1,
-                    bool rigid_view = true) {
+                    bool rigid_view = true, std::size_t max_final_planes = 0) {
   const hal::sim::RobotSpec robot = hal::sim::load_robot("paper_rmp");
   hal::sim::SimOptions options;
   options.seed = seed;
@@ -181,6 +181,9 @@ MapperRun map_world(const std::string& world, PoseSource poses, double duration_
   }
   config.rigid_path = rigid_path;
   config.rigid_view = rigid_view;
+  if (max_final_planes > 0) {
+    config.registry.max_final_planes = max_final_planes;
+  }
   if (!sections_wait) {
     // Every section searched again whenever anything in it changed.
     config.planes.barren_section_growth = 0.0;
@@ -731,6 +734,31 @@ TEST(MapperSim, TheStreamShowsTheRigidMapAsTheRunGoes) {
     EXPECT_EQ(shown.final_planes[i].d_m, drawn.final_planes[i].d_m);
     EXPECT_EQ(shown.final_planes[i].centroid_m, drawn.final_planes[i].centroid_m);
   }
+}
+
+// A final list too small for the block (8 of its 39 planes): each plane it leaves out, the
+// new one or a smaller one it held, the stream reports removed, through the view's refreshes
+// and the end's move, so a consumer still holds exactly the final list.
+TEST(MapperSim, AFullFinalListKeepsTheStreamAndTheListOneMap) {
+#if defined(BLOCKMAP_QUICK_WORLDS)
+  GTEST_SKIP() << "the optimized host trees drive usc_block with the rigid path";
+#endif
+  constexpr std::size_t kFinalPlanes = 8;
+  const MapperRun run = map_world("usc_block", PoseSource::kLocalizer, kDurationS, true, 0.0, true,
+                                  3, nullptr, nullptr, RigidPath::kOn, 1, true, kFinalPlanes);
+  std::printf("%llu final planes dropped for %zu kept; %llu shown again by the view\n",
+              static_cast<unsigned long long>(run.registry.final_dropped), run.final_planes.size(),
+              static_cast<unsigned long long>(run.registry.view_moved));
+  EXPECT_EQ(run.final_planes.size(), kFinalPlanes);
+  EXPECT_GT(run.registry.final_dropped, 20u);
+  EXPECT_GT(run.registry.view_moved, 0u);
+  expect_stream_gives_final_list(run);
+  // The biggest planes are the ones kept: the block's four walls among them.
+  std::size_t walls = 0;
+  for (const msg::PlanePatch& plane : run.final_planes) {
+    walls += plane.kind == msg::PlaneKind::kWall && plane.support > 1000.0 ? 1U : 0U;
+  }
+  EXPECT_GE(walls, 4u);
 }
 
 // Twice round usc_block every wall is seen on two laps: the mapper pairs each wall of the

@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <map>
 #include <numbers>
+#include <span>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -525,6 +527,104 @@ TEST(PlaneRegistry, WhenFullTheSmallestLivePlaneMakesRoomOrTheNewOneIsRefused) {
   changes = r.detect({wall(0, 5, 10), wall(0, 9, 30), wall(0, 1, 40)});
   EXPECT_EQ(count(changes, msg::PlaneChangeKind::kAdded), 0u);
   EXPECT_EQ(r.registry.counters().refused_full, 1u);
+}
+
+// What a consumer of the stream holds: each plane by id, as its last change left it.
+struct StreamHolder {
+  void apply(std::span<const msg::PlaneChange> changes) {
+    for (const msg::PlaneChange& c : changes) {
+      if (c.change == msg::PlaneChangeKind::kRemoved) {
+        ASSERT_EQ(planes.erase(c.plane.id), 1u) << "removed, but never shown: " << c.plane.id;
+      } else {
+        planes[c.plane.id] = c.plane;
+      }
+    }
+  }
+  std::map<std::uint32_t, msg::PlanePatch> planes;
+};
+
+std::vector<std::uint32_t> ids_of(std::span<const msg::PlanePatch> planes) {
+  std::vector<std::uint32_t> ids;
+  for (const msg::PlanePatch& p : planes) {
+    ids.push_back(p.id);
+  }
+  std::sort(ids.begin(), ids.end());
+  return ids;
+}
+
+std::vector<std::uint32_t> ids_of(const StreamHolder& stream) {
+  std::vector<std::uint32_t> ids;
+  for (const auto& [id, plane] : stream.planes) {
+    ids.push_back(id);
+  }
+  return ids;
+}
+
+// A full final list keeps the biggest planes, and whichever it leaves out, the new one or an
+// older one, the stream is told: it holds what the final list holds.
+TEST(PlaneRegistry, AFullFinalListDropsTheSmallestAndTheStreamDropsItToo) {
+  PlaneRegistryConfig config;
+  config.max_final_planes = 2;
+  Registry r(config);
+  StreamHolder stream;
+  const Eigen::AlignedBox2d far_away(Eigen::Vector2d(500, 500), Eigen::Vector2d(600, 600));
+  const auto finalize_one = [&](const Detected& d) {
+    stream.apply(r.detect({d}));
+    r.registry.begin_update();
+    r.registry.finalize_outside(far_away);
+    stream.apply(r.registry.changes());
+    return std::vector<msg::PlaneChange>(r.registry.changes().begin(), r.registry.changes().end());
+  };
+  static_cast<void>(finalize_one(wall(0, 5, 10)));  // support 51 x 41
+  static_cast<void>(finalize_one(wall(0, 8, 20)));  // 81 x 41
+  auto changes = finalize_one(wall(0, 3, 30));      // the smallest: left out itself
+  ASSERT_EQ(changes.size(), 1u);
+  EXPECT_EQ(changes[0].change, msg::PlaneChangeKind::kRemoved);
+  EXPECT_NEAR(changes[0].plane.d_m, 30.0, 1e-9);
+  EXPECT_EQ(r.registry.counters().final_dropped, 1u);
+  EXPECT_EQ(ids_of(r.registry.final_planes()), ids_of(stream));
+  changes = finalize_one(wall(0, 12, 40));  // bigger than the one at y 10: that one goes
+  EXPECT_EQ(count(changes, msg::PlaneChangeKind::kRemoved), 1u);
+  EXPECT_EQ(count(changes, msg::PlaneChangeKind::kFinalized), 1u);
+  EXPECT_EQ(r.registry.counters().final_dropped, 2u);
+  ASSERT_EQ(r.registry.final_planes().size(), 2u);
+  EXPECT_EQ(ids_of(r.registry.final_planes()), ids_of(stream));
+  for (const msg::PlanePatch& p : r.registry.final_planes()) {
+    EXPECT_TRUE(std::abs(p.d_m - 20.0) < 1e-6 || std::abs(p.d_m - 40.0) < 1e-6) << p.d_m;
+  }
+}
+
+// Many final planes on one surface (a restored map) and one detection across them all: an
+// update reports at most kExtraChangesPerUpdate of them joining it, the rest join at the next.
+TEST(PlaneRegistry, FinalPlanesJoiningADetectionPastWhatAnUpdateHoldsWaitForTheNext) {
+  constexpr std::size_t kPieces = PlaneRegistry::kExtraChangesPerUpdate + 6;
+  Registry r;
+  std::vector<SavedPlane> saved;
+  for (std::size_t i = 0; i < kPieces; ++i) {
+    const double x0_m = 0.1 * static_cast<double>(i);
+    Detected piece = wall(x0_m, x0_m + 4.0, 10);
+    piece.plane.id = static_cast<std::uint32_t>(i + 1);
+    saved.push_back(SavedPlane{piece.plane, piece.moments});
+  }
+  r.registry.restore(saved);
+  StreamHolder stream;
+  for (const SavedPlane& s : saved) {
+    stream.planes[s.plane.id] = s.plane;  // what the run before showed
+  }
+  const Detected across = wall(0, 12, 10);
+  auto changes = r.detect({across});
+  EXPECT_LE(changes.size(), r.registry.change_capacity());
+  EXPECT_EQ(count(changes, msg::PlaneChangeKind::kRemoved), PlaneRegistry::kExtraChangesPerUpdate);
+  stream.apply(changes);
+  EXPECT_EQ(r.registry.final_planes().size(), kPieces - 1 - PlaneRegistry::kExtraChangesPerUpdate);
+  changes = r.detect({across});
+  EXPECT_EQ(count(changes, msg::PlaneChangeKind::kRemoved),
+            kPieces - 1 - PlaneRegistry::kExtraChangesPerUpdate);
+  stream.apply(changes);
+  EXPECT_TRUE(r.registry.final_planes().empty());
+  ASSERT_EQ(r.registry.live_count(), 1u);
+  ASSERT_EQ(stream.planes.size(), 1u) << "one wall, under one id";
+  EXPECT_EQ(r.registry.counters().merged, kPieces - 1);
 }
 
 TEST(PlaneRegistry, RefusesAnUnusableConfiguration) {

@@ -177,12 +177,16 @@ TEST(RunCommand, TheConfigSetsTheWindowAndTheExtractionsAndEveryMistakeNamesItsK
       config_with("wide.toml",
                   "[window]\ntiles_across = 9\nmax_samples = 40960\n[projection]\n"
                   "max_range_m = 50.0\n[mapper]\nextract_every_s = 0.25\n[free_space]\n"
-                  "tiles_across = 4\ncell_size_m = 1.0\n");
+                  "tiles_across = 4\ncell_size_m = 1.0\n[registry]\nmax_live_planes = 64\n"
+                  "max_final_planes = 300\n");
   testing::CliResult result =
       run_cli({"run", "--config", wide, "--duration-s", "2", "--out", (out / "run").string()});
   ASSERT_EQ(result.status, kExitOk) << result.err;
   EXPECT_NE(result.err.find("samples of 40960"), std::string::npos) << result.err;
   EXPECT_NE(result.err.find("free_space.cells 0.03,"), std::string::npos) << "4 x 4 tiles of 2 KiB";
+  EXPECT_NE(result.err.find("live planes "), std::string::npos) << result.err;
+  EXPECT_NE(result.err.find(" of 64, changes of an update "), std::string::npos) << result.err;
+  EXPECT_NE(result.err.find(" of 300\n"), std::string::npos) << "final planes: " << result.err;
   // Two seconds at a quarter second each: several extractions, where the default's 1 s
   // makes one or two.
   const std::size_t at = result.err.find(" extractions (");
@@ -206,6 +210,8 @@ TEST(RunCommand, TheConfigSetsTheWindowAndTheExtractionsAndEveryMistakeNamesItsK
       {"[free_space]\ncells = 9\n", "free_space.cells: unknown key"},
       {"[rigid_path]\nenabled = true\nfix_sigma = 3\n", "rigid_path.fix_sigma: unknown key"},
       {"[rigid_path]\nview_change_m = 0\n", "rigid_path.view_change_m: must be > 0"},
+      {"[registry]\nmax_final_planes = 0\n", "registry.max_final_planes: must be"},
+      {"[registry]\nmax_live = 9\n", "registry.max_live: unknown key"},
       {"[rigid_path]\nenabled = true\n[mapper]\npose_lag_s = 4.0\n",
        "rigid_path needs scan matching"},
       {"[rigid_path]\nenabled = true\n[free_space]\ntiles_across = 16\n",

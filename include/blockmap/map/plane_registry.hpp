@@ -24,7 +24,8 @@
 // that finds them all taken replaces the smallest live one if it is bigger (that one is
 // finalized early, counted), or is refused (counted). At most max_final_planes final planes; a
 // plane finalized when they are all taken replaces the smallest if it is bigger, else is
-// dropped (counted either way).
+// dropped (counted either way). Either way the dropped plane is reported removed, so that the
+// stream keeps showing what the final list holds.
 #pragma once
 
 #include <algorithm>
@@ -45,7 +46,10 @@
 namespace blockmap::map {
 
 struct PlaneRegistryConfig {
-  std::size_t max_live_planes = 512;
+  // The planes in the mapper's window: at most 32 on benning, 21 over ten laps of usc_block
+  // (the run's "capacities" line); 256 leaves eight times that.
+  std::size_t max_live_planes = 256;
+  // The planes that left the window: 82 on benning, 170 over ten laps of usc_block.
   std::size_t max_final_planes = 2048;
   // The most planes one detection gives (the detector's max_planes): it sizes the change list.
   std::size_t max_detected_planes = 4096;
@@ -89,6 +93,10 @@ struct PlaneRegistryCounters {
   std::uint64_t samples_frozen = 0;   // evicted samples kept by a live plane
   std::uint64_t reopened = 0;         // final planes seen again (the robot came back)
   std::uint64_t view_moved = 0;       // planes reported again where a refreshed view puts them
+  // The most live planes after an update, and the most changes one update held: what
+  // max_live_planes and the change list (change_capacity()) are sized against.
+  std::size_t peak_live = 0;
+  std::size_t peak_changes = 0;
 };
 
 // When a plane was seen: the stamps of the detections that matched it, as at most kMaxSpans
@@ -171,8 +179,18 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   void init(Arena& arena, const PlaneRegistryConfig& config);
   [[nodiscard]] static std::size_t arena_bytes(const PlaneRegistryConfig& config) noexcept;
 
+  // Changes an update may hold beyond what its detections bound (changes_per_update): final
+  // planes that a detection finds on the surface of the plane it matched, each reported
+  // removed as it joins that one, and final planes dropped to make room for a bigger one. Past
+  // these, a final plane waits to join until the next update, and a plane finalized into a
+  // full list is the one dropped.
+  static constexpr std::size_t kExtraChangesPerUpdate = 64;
+
   // The changes since begin_update() accumulate until the next begin_update().
-  void begin_update() noexcept { change_count_ = 0; }
+  void begin_update() noexcept {
+    change_count_ = 0;
+    extra_changes_ = 0;
+  }
   [[nodiscard]] std::span<const msg::PlaneChange> changes() const noexcept {
     return changes_.first(change_count_);
   }
@@ -239,6 +257,8 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
     }
   }
   [[nodiscard]] std::size_t live_count() const noexcept { return live_count_; }
+  [[nodiscard]] std::size_t live_capacity() const noexcept { return live_.size(); }
+  [[nodiscard]] std::size_t final_capacity() const noexcept { return final_.size(); }
   // The most changes one update can hold.
   [[nodiscard]] std::size_t change_capacity() const noexcept { return changes_.size(); }
   [[nodiscard]] const PlaneRegistryCounters& counters() const noexcept { return counters_; }
@@ -280,8 +300,15 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   LivePlane* take_final_matches(const msg::PlanePatch& detected,
                                 const Eigen::AlignedBox3d& detected_box, LivePlane* into) noexcept;
   void remove_final(std::size_t index) noexcept;
-  void store_final(const msg::PlanePatch& plane, const planes::PointMoments& moments,
-                   const SeenSpans& seen, const PlaneMove& shown) noexcept;
+  // False when the list was full and `plane` the one left out (the caller reports it removed).
+  [[nodiscard]] bool store_final(const msg::PlanePatch& plane, const planes::PointMoments& moments,
+                                 const SeenSpans& seen, const PlaneMove& shown) noexcept;
+  [[nodiscard]] std::size_t smallest_final() const noexcept;  // of a list that is not empty
+  void put_final(std::size_t index, const msg::PlanePatch& plane,
+                 const planes::PointMoments& moments, const SeenSpans& seen,
+                 const PlaneMove& shown) noexcept;
+  // Whether one more change beyond the update's bound fits (kExtraChangesPerUpdate); taken.
+  [[nodiscard]] bool take_extra_change() noexcept;
   // The live plane `detected` continues (the biggest of those it matches, the others merged
   // into it), or nullptr.
   [[nodiscard]] LivePlane* match_and_merge(const msg::PlanePatch& detected) noexcept;
@@ -339,6 +366,7 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   std::size_t refresh_next_ = 0;  // where refresh_view() goes on: finals, then live slots
   std::span<msg::PlaneChange> changes_;
   std::size_t change_count_ = 0;
+  std::size_t extra_changes_ = 0;  // of kExtraChangesPerUpdate, taken in this update
   std::span<Eigen::Vector2d> scratch_2d_;
   std::span<Eigen::Vector2d> scratch_hull_;
   std::uint32_t next_id_ = 1;

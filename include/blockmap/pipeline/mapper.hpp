@@ -198,6 +198,10 @@ struct MapperCounters {
   // The most window samples the detector had no room for at one extraction (its blocks full:
   // [planes] max_blocks). Their points are in the window, not in the planes.
   std::size_t peak_samples_without_room = 0;
+  // The most section planes and merged planes of one extraction: what [planes] max_patches
+  // and max_planes are sized against.
+  std::size_t peak_section_planes = 0;
+  std::size_t peak_detected_planes = 0;
   std::uint64_t scan_planes_rejected = 0;  // detected planes that were a laser's scan plane
   std::uint64_t points = 0;
   std::uint64_t rigid_path_fixes_dropped = 0;    // fixes that waited for a matched scan too long
