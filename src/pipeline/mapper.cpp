@@ -863,8 +863,8 @@ void Mapper::extract(TimestampNs stamp_ns) noexcept {
   counters_.peak_samples_without_room =
       std::max(counters_.peak_samples_without_room,
                window_.size() - std::min(window_.size(), detector_.voxels().size()));
-  counters_.peak_section_planes =
-      std::max(counters_.peak_section_planes, detector_.stats().section_planes);
+  counters_.peak_section_planes = std::max(
+      counters_.peak_section_planes, static_cast<std::size_t>(detector_.stats().section_planes));
   counters_.peak_detected_planes = std::max(counters_.peak_detected_planes, planes.size());
   counters_.scan_planes_rejected += detector_.stats().planes_excluded;
   counters_.sections_searched += detector_.stats().sections_searched;
