@@ -178,11 +178,13 @@ void MappingSession::report(std::ostream& err, double data_s) const {
     std::snprintf(
         text, sizeof text,
         "rigid path: %zu keyframes (%llu thinnings), %llu fixes, %zu ties between passes "
-        "(%llu dropped), %llu solves; %llu final planes moved by it, %llu times a plane was "
+        "(full: %llu new ones dropped, %llu kept ones replaced), %llu solves; %llu final planes "
+        "moved by it, %llu times a plane was "
         "shown again where a solve moved it, %llu fixes dropped waiting\n",
         mapper_.rigid_path().keyframe_count(), static_cast<unsigned long long>(p.thinnings),
         static_cast<unsigned long long>(p.fixes), mapper_.rigid_path().tie_count(),
-        static_cast<unsigned long long>(p.ties_dropped), static_cast<unsigned long long>(p.solves),
+        static_cast<unsigned long long>(p.ties_dropped),
+        static_cast<unsigned long long>(p.ties_replaced), static_cast<unsigned long long>(p.solves),
         static_cast<unsigned long long>(c.planes_moved),
         static_cast<unsigned long long>(mapper_.registry().counters().view_moved),
         static_cast<unsigned long long>(c.rigid_path_fixes_dropped));

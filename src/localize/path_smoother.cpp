@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 #include <Eigen/Cholesky>
@@ -316,13 +317,50 @@ bool PathSmoother::tie(std::uint32_t key, const WallLook& earlier, const WallLoo
       return true;
     }
   }
-  if (tie_count_ == ties_.size()) {
+  if (tie_count_ < ties_.size()) {
+    ties_[tie_count_++] = candidate;
+    ++counters_.ties;
+    return true;
+  }
+  const std::size_t slot = spare_tie_slot(candidate);
+  if (slot == ties_.size()) {
     ++counters_.ties_dropped;
     return false;
   }
-  ties_[tie_count_++] = candidate;
+  ties_[slot] = candidate;
   ++counters_.ties;
+  ++counters_.ties_replaced;
   return true;
+}
+
+TimestampNs PathSmoother::tie_likeness_ns(const Tie& p, const Tie& q) noexcept {
+  // Walls within 45 degrees of each other count as parallel: a city block's are square.
+  constexpr double kParallelCos = 0.7071;
+  if (std::abs(p.earlier.normal.dot(q.earlier.normal)) < kParallelCos) {
+    return std::numeric_limits<TimestampNs>::max();
+  }
+  const auto apart = [](TimestampNs a, TimestampNs b) { return a > b ? a - b : b - a; };
+  return std::max(apart(p.earlier.stamp_ns, q.earlier.stamp_ns),
+                  apart(p.later.stamp_ns, q.later.stamp_ns));
+}
+
+std::size_t PathSmoother::spare_tie_slot(const Tie& candidate) const noexcept {
+  std::size_t slot = ties_.size();  // the new one, unless two kept ones are more alike
+  TimestampNs closest_ns = std::numeric_limits<TimestampNs>::max();
+  for (std::size_t i = 0; i < tie_count_; ++i) {
+    const TimestampNs likeness_ns = tie_likeness_ns(ties_[i], candidate);
+    closest_ns = std::min(closest_ns, likeness_ns);
+  }
+  for (std::size_t i = 0; i < tie_count_; ++i) {
+    for (std::size_t j = i + 1; j < tie_count_; ++j) {
+      const TimestampNs likeness_ns = tie_likeness_ns(ties_[i], ties_[j]);
+      if (likeness_ns < closest_ns) {
+        closest_ns = likeness_ns;
+        slot = ties_[i].later.stamp_ns <= ties_[j].later.stamp_ns ? i : j;
+      }
+    }
+  }
+  return slot;
 }
 
 std::size_t PathSmoother::keyframe_nearest(TimestampNs stamp_ns) const noexcept {

@@ -346,7 +346,7 @@ TEST(PathSmootherTies, AWallSeenOnTwoPassesIsOneWallOnTheSolvedPath) {
   EXPECT_NEAR(middle_m[1], OutAndBack::kWallNorthM, 0.3);
 }
 
-TEST(PathSmootherTies, OnePassRefreshesItsTieAndAFullSetDropsTheNew) {
+TEST(PathSmootherTies, OnePassRefreshesItsTie) {
   PathSmootherConfig config;
   config.max_ties = 2;
   SmootherFixture fixture(config);
@@ -364,9 +364,50 @@ TEST(PathSmootherTies, OnePassRefreshesItsTieAndAFullSetDropsTheNew) {
   EXPECT_EQ(smoother.counters().ties_refreshed, 1u);
   EXPECT_TRUE(smoother.tie(1, earlier, later(200 * kNanosecondsPerSecond)));  // another pass
   EXPECT_EQ(smoother.tie_count(), 2u);
-  EXPECT_FALSE(smoother.tie(2, earlier, later(200 * kNanosecondsPerSecond)));
   EXPECT_EQ(smoother.counters().ties, 2u);
+  EXPECT_EQ(smoother.counters().ties_dropped, 0u);
+}
+
+// Full, the two most alike of the kept ties and the new one hold the same stretches of path
+// to each other: the new one is dropped when it is one of them, else the older of the two
+// gives it its place, so that a long run's later passes are tied too.
+TEST(PathSmootherTies, AFullSetGivesUpTheMostAlikeTie) {
+  PathSmootherConfig config;
+  config.max_ties = 3;
+  SmootherFixture fixture(config);
+  PathSmoother& smoother = fixture.smoother;
+  smoother.add(Pose2{0, 0.0, 0.0, 0.0}, Eigen::Vector2d(0.0, 0.0));
+  const auto look = [](double stamp_s, const Eigen::Vector2d& normal) {
+    return WallLook{static_cast<TimestampNs>(stamp_s * 1e9), normal, Eigen::Vector2d(0.0, 5.0)};
+  };
+  const Eigen::Vector2d north(0.0, 1.0);
+  const Eigen::Vector2d east(1.0, 0.0);
+  // Two ties of the same two stretches (5 s apart at most) and one of a third pass.
+  ASSERT_TRUE(smoother.tie(1, look(0.0, north), look(100.0, north)));
+  ASSERT_TRUE(smoother.tie(2, look(5.0, north), look(104.0, north)));
+  ASSERT_TRUE(smoother.tie(3, look(0.0, north), look(300.0, north)));
+  // Within 2 s of the first: it is the spare one.
+  EXPECT_FALSE(smoother.tie(4, look(2.0, north), look(101.0, north)));
   EXPECT_EQ(smoother.counters().ties_dropped, 1u);
+  // A fourth pass, 200 s from every kept one: the first (older than the second) goes.
+  EXPECT_TRUE(smoother.tie(5, look(0.0, north), look(500.0, north)));
+  EXPECT_EQ(smoother.tie_count(), 3u);
+  EXPECT_EQ(smoother.counters().ties_replaced, 1u);
+  // The second is still kept: a later look of its pass refreshes it.
+  EXPECT_TRUE(smoother.tie(2, look(5.0, north), look(110.0, north)));
+  EXPECT_EQ(smoother.counters().ties_refreshed, 1u);
+  // A wall across the others is like none of them: the most alike pair is now the second
+  // (later look at 110 s) and the third (300 s), 190 s apart, and the second goes.
+  EXPECT_TRUE(smoother.tie(6, look(1.0, east), look(103.0, east)));
+  EXPECT_EQ(smoother.counters().ties_replaced, 2u);
+  // The first is gone: a later look of its pass is a new tie, not a refresh. It is 190 s
+  // from the third, nearer than any two kept ones (the third and the fifth, 200 s): it is
+  // the spare one.
+  EXPECT_FALSE(smoother.tie(1, look(0.0, north), look(110.0, north)));
+  EXPECT_EQ(smoother.counters().ties_refreshed, 1u);
+  EXPECT_EQ(smoother.counters().ties_dropped, 2u);
+  EXPECT_EQ(smoother.counters().ties, 5u);
+  EXPECT_EQ(smoother.tie_count(), 3u);
 }
 
 TEST(PathSmoother, BadConfigurationsAreNamed) {

@@ -65,7 +65,8 @@ struct PathSmootherConfig {
   double fix_sigma_m = 6.4;
   // Gauss-Newton steps per solve(); each starts from the last solution.
   std::uint32_t iterations = 3;
-  // Ties between passes: the most kept (a new one is dropped when full, counted), how far
+  // Ties between passes: the most kept (when full, the two most alike of the kept and the new
+  // one hold nearly the same, and one of them gives way: see tie()), how far
   // the two looks may disagree after the corrections (sigmas of the offset along the wall's
   // normal and of its turn), and beyond how many sigmas a tie pulls no harder (Huber: one
   // tie does not outweigh a pass's fixes). Pairing the looks is the caller's: a wrong pair
@@ -101,7 +102,8 @@ struct PathSmootherCounters {
   std::uint64_t refused = 0;         // add() with a time before the last keyframe's
   std::uint64_t ties = 0;            // ties between passes added
   std::uint64_t ties_refreshed = 0;  // a later look of the same pass took a tie's place
-  std::uint64_t ties_dropped = 0;    // the ties were full
+  std::uint64_t ties_dropped = 0;    // the ties were full and the new one was the spare
+  std::uint64_t ties_replaced = 0;   // the ties were full and a kept one gave the new its place
   std::uint64_t cg_steps = 0;        // conjugate-gradient steps, all solves
 };
 
@@ -128,7 +130,11 @@ class PathSmoother {
   // The wall `key` (the caller's name for it) that `earlier` saw is the wall `later` sees,
   // on another pass. A tie of the same key whose later look is of this pass (less than
   // kSamePassNs before this one) takes this look instead: the wall grows as the robot passes.
-  // Returns whether the tie is kept (false: the ties are full, or there are no keyframes).
+  // When the ties are full, of the kept ones and this one the two most alike (tie_likeness_ns)
+  // hold nearly the same stretches of path to each other: the older of the two goes, or this
+  // one if it is of the two. Dropping every new tie instead would leave the later passes of a
+  // long run untied, however far they drift; this keeps the ties spread over the run.
+  // Returns whether the tie is kept (false: it was the spare one, or there are no keyframes).
   static constexpr TimestampNs kSamePassNs = 20 * kNanosecondsPerSecond;
   bool tie(std::uint32_t key, const WallLook& earlier, const WallLook& later) noexcept;
   [[nodiscard]] std::size_t tie_count() const noexcept { return tie_count_; }
@@ -196,6 +202,14 @@ class PathSmoother {
   void accumulate_motion(std::size_t i) noexcept;
   void accumulate_receiver(std::size_t i) noexcept;
   void accumulate_fix(std::size_t i) noexcept;
+  // How alike two ties are: the longer of the times between their earlier looks and between
+  // their later looks (ties that close hold the same two stretches of path to each other), or
+  // the most there is when their walls are not parallel (a corner's two walls hold the path
+  // along both axes: neither is spare).
+  [[nodiscard]] static TimestampNs tie_likeness_ns(const Tie& p, const Tie& q) noexcept;
+  // Full: the slot the new tie takes, or ties_.size() when it is the spare one. O(ties^2),
+  // only when full.
+  [[nodiscard]] std::size_t spare_tie_slot(const Tie& candidate) const noexcept;
   void linearize_tie(Tie& tie) const noexcept;
   void accumulate_tie_gradient(const Tie& tie) noexcept;
   [[nodiscard]] std::size_t keyframe_nearest(TimestampNs stamp_ns) const noexcept;
