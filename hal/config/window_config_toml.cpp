@@ -76,6 +76,9 @@ pipeline::MapperConfig parse_window_config(std::string_view text, std::string_vi
     r.bias_sigma_m = t.positive_or("bias_sigma_m", r.bias_sigma_m);
     r.bias_time_s = t.positive_or("bias_time_s", r.bias_time_s);
     r.fix_sigma_m = t.positive_or("fix_sigma_m", r.fix_sigma_m);
+    // A carrier-phase (RTK) fix's sigma, per fix: no slow error is solved for it.
+    r.rtk_fixed_sigma_m = t.positive_or("rtk_fixed_sigma_m", r.rtk_fixed_sigma_m);
+    r.rtk_float_sigma_m = t.positive_or("rtk_float_sigma_m", r.rtk_float_sigma_m);
     r.iterations = static_cast<std::uint32_t>(t.capacity_or("iterations", r.iterations));
     // Ties between passes (0: none, the path's band alone).
     r.max_ties = static_cast<std::size_t>(t.non_negative(

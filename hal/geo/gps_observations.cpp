@@ -31,6 +31,19 @@ TimestampNs fix_stamp_ns(const msg::GpsFix& fix, TimestampNs near_ns) {
   return stamp;
 }
 
+localize::GpsCorrection correction_of(msg::GpsFixQuality quality) {
+  switch (quality) {
+    case msg::GpsFixQuality::kDgps:
+      return localize::GpsCorrection::kDifferential;
+    case msg::GpsFixQuality::kRtkFixed:
+      return localize::GpsCorrection::kRtkFixed;
+    case msg::GpsFixQuality::kRtkFloat:
+      return localize::GpsCorrection::kRtkFloat;
+    default:
+      return localize::GpsCorrection::kNone;
+  }
+}
+
 GeodeticPoint fix_point(const msg::GpsFix& fix) {
   return {fix.latitude_deg, fix.longitude_deg,
           fix.altitude_msl_m + (fix.has_geoid_separation ? fix.geoid_separation_m : 0.0)};
@@ -46,13 +59,11 @@ bool FixConverter::convert(const msg::GpsFix& fix, TimestampNs near_ns,
     frame_.emplace(fix_point(fix));  // the local frame: anchored at the first good fix
   }
   const Eigen::Vector3d enu = frame_->to_enu_m(fix_point(fix));
-  const bool differential = fix.quality == msg::GpsFixQuality::kDgps ||
-                            fix.quality == msg::GpsFixQuality::kRtkFixed ||
-                            fix.quality == msg::GpsFixQuality::kRtkFloat;
+  const localize::GpsCorrection correction = correction_of(fix.quality);
   const TimestampNs stamp_ns =
       time_ == FixTime::kUtc ? fix_stamp_ns(fix, near_ns) : on_receive_clock(fix);
   out = localize::GpsObservation{stamp_ns, enu.x(), enu.y(), fix.has_hdop ? fix.hdop : 1.0,
-                                 differential};
+                                 correction};
   up_m = enu.z();
   return true;
 }

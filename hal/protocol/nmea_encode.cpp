@@ -48,21 +48,41 @@ bool append_time(std::span<char> out, std::size_t& length, const msg::GpsFix& fi
                 static_cast<int>(centiseconds % 100));
 }
 
-// ddmm.mmmmm,N (or dddmm.mmmmm,E), rounded to the fifth decimal of a minute: ",," when absent.
+// How finely a fix is written. A code fix: the fifth decimal of a minute (1.9 cm) and a
+// decimetre of altitude, as most receivers write it. A carrier-phase (RTK) fix: the seventh
+// (0.2 mm) and a millimetre, as RTK receivers do in their high-precision mode, since the fix
+// itself is good to centimetres.
+struct Precision {
+  int minute_decimals = 5;
+  int altitude_decimals = 1;
+};
+
+Precision precision_of(const msg::GpsFix& fix) {
+  const bool carrier_phase = fix.has_quality && (fix.quality == msg::GpsFixQuality::kRtkFixed ||
+                                                 fix.quality == msg::GpsFixQuality::kRtkFloat);
+  return carrier_phase ? Precision{7, 3} : Precision{};
+}
+
+// ddmm.mmmmm,N (or dddmm.mmmmm,E), rounded to `decimals` of a minute: ",," when absent.
 bool append_angle(std::span<char> out, std::size_t& length, bool present, double degrees,
-                  int degree_digits, char positive, char negative) {
+                  int degree_digits, int decimals, char positive, char negative) {
   if (!present) {
     return append_text(out, length, ",");
   }
   const char hemisphere = degrees < 0.0 ? negative : positive;
-  // Work in 1e-5 minutes so that rounding never prints 60.00000 minutes.
-  const auto units = static_cast<std::int64_t>(std::llround(std::abs(degrees) * 60.0 * 1e5));
-  const std::int64_t whole_degrees = units / 6000000;
-  const std::int64_t minute_units = units % 6000000;
-  return append(out, length, "%0*lld%02lld.%05lld,%c", degree_digits,
+  // Work in whole units of the last decimal so that rounding never prints 60.00000 minutes.
+  std::int64_t per_minute = 1;
+  for (int i = 0; i < decimals; ++i) {
+    per_minute *= 10;
+  }
+  const auto units = static_cast<std::int64_t>(
+      std::llround(std::abs(degrees) * 60.0 * static_cast<double>(per_minute)));
+  const std::int64_t whole_degrees = units / (60 * per_minute);
+  const std::int64_t minute_units = units % (60 * per_minute);
+  return append(out, length, "%0*lld%02lld.%0*lld,%c", degree_digits,
                 static_cast<long long>(whole_degrees),
-                static_cast<long long>(minute_units / 100000),
-                static_cast<long long>(minute_units % 100000), hemisphere);
+                static_cast<long long>(minute_units / per_minute), decimals,
+                static_cast<long long>(minute_units % per_minute), hemisphere);
 }
 
 // "$" + talker + type, fields appended by the caller, then finish() adds "*hh\r\n".
@@ -89,17 +109,21 @@ std::size_t encode_gga(const msg::GpsFix& fix, std::string_view talker,
   std::size_t length = 0;
   const bool position = fix.has_position && fix.valid;
   const int quality = fix.has_quality ? static_cast<int>(fix.quality) : 0;
+  const Precision precision = precision_of(fix);
   const bool ok =
       start(out, length, talker, "GGA") && append_text(out, length, ",") &&
       append_time(out, length, fix) && append_text(out, length, ",") &&
-      append_angle(out, length, position, fix.latitude_deg, 2, 'N', 'S') &&
+      append_angle(out, length, position, fix.latitude_deg, 2, precision.minute_decimals, 'N',
+                   'S') &&
       append_text(out, length, ",") &&
-      append_angle(out, length, position, fix.longitude_deg, 3, 'E', 'W') &&
+      append_angle(out, length, position, fix.longitude_deg, 3, precision.minute_decimals, 'E',
+                   'W') &&
       append(out, length, ",%d,", quality) &&
       (!fix.has_satellites || append(out, length, "%02u", unsigned{fix.satellites_used})) &&
       append_text(out, length, ",") && (!fix.has_hdop || append(out, length, "%.1f", fix.hdop)) &&
       append_text(out, length, ",") &&
-      (!(position && fix.has_altitude) || append(out, length, "%.1f", fix.altitude_msl_m)) &&
+      (!(position && fix.has_altitude) ||
+       append(out, length, "%.*f", precision.altitude_decimals, fix.altitude_msl_m)) &&
       append_text(out, length, ",M,") &&
       (!fix.has_geoid_separation || append(out, length, "%.1f", fix.geoid_separation_m)) &&
       append_text(out, length, ",M,,");
@@ -110,11 +134,14 @@ std::size_t encode_rmc(const msg::GpsFix& fix, std::string_view talker,
                        std::span<char> out) noexcept {
   std::size_t length = 0;
   const bool position = fix.has_position && fix.valid;
+  const Precision precision = precision_of(fix);
   bool ok = start(out, length, talker, "RMC") && append_text(out, length, ",") &&
             append_time(out, length, fix) && append(out, length, ",%c,", fix.valid ? 'A' : 'V') &&
-            append_angle(out, length, position, fix.latitude_deg, 2, 'N', 'S') &&
+            append_angle(out, length, position, fix.latitude_deg, 2, precision.minute_decimals, 'N',
+                         'S') &&
             append_text(out, length, ",") &&
-            append_angle(out, length, position, fix.longitude_deg, 3, 'E', 'W') &&
+            append_angle(out, length, position, fix.longitude_deg, 3, precision.minute_decimals,
+                         'E', 'W') &&
             append_text(out, length, ",") &&
             (!fix.has_velocity || append(out, length, "%.3f", fix.speed_mps * kKnotsPerMps)) &&
             append_text(out, length, ",") &&

@@ -7,6 +7,7 @@
 #include <numbers>
 
 #include "blockmap/core/check.hpp"
+#include "blockmap/localize/localizer.hpp"
 
 namespace blockmap::hal::sim {
 namespace {
@@ -18,10 +19,7 @@ double wrap_angle(double angle) {
 }  // namespace
 
 Eigen::Matrix3d RobotState::rotation() const {
-  return (Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()) *
-          Eigen::AngleAxisd(pitch_rad, Eigen::Vector3d::UnitY()) *
-          Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
-      .toRotationMatrix();
+  return localize::attitude_rotation(roll_rad, pitch_rad, yaw_rad);
 }
 
 RobotMotion::RobotMotion(const BaseSpec& base, const Path& path, const Terrain& terrain)

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "../config/toml_reader.hpp"
+#include "blockmap/localize/localizer.hpp"
 #include "builtin_robots.hpp"
 
 namespace blockmap::hal::sim {
@@ -225,6 +226,18 @@ GpsSpec parse_gps(TableReader& root) {
   gps.latency_s = t.in_range("latency_s", t.number_or("latency_s", gps.latency_s), 0.0, 1.0);
   gps.hdop_open_sky =
       t.in_range("hdop_open_sky", t.number_or("hdop_open_sky", gps.hdop_open_sky), 0.5, 20.0);
+  const std::string quality = t.string_or("fix_quality", "gps");
+  if (quality == "gps") {
+    gps.fix_quality = msg::GpsFixQuality::kGps;
+  } else if (quality == "dgps") {
+    gps.fix_quality = msg::GpsFixQuality::kDgps;
+  } else if (quality == "rtk_float") {
+    gps.fix_quality = msg::GpsFixQuality::kRtkFloat;
+  } else if (quality == "rtk_fixed") {
+    gps.fix_quality = msg::GpsFixQuality::kRtkFixed;
+  } else {
+    t.fail("fix_quality", "expected gps, dgps, rtk_float or rtk_fixed");
+  }
   gps.satellites = static_cast<int>(t.integer_or("satellites", gps.satellites));
   if (gps.satellites < 4 || gps.satellites > 12) {
     t.fail("satellites", "must lie in [4, 12]");
@@ -251,10 +264,7 @@ int mirror_turns_per_scan(lms::AngularVariant variant) noexcept {
 }
 
 Eigen::Matrix3d Mount::rotation() const {
-  return (Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()) *
-          Eigen::AngleAxisd(pitch_rad, Eigen::Vector3d::UnitY()) *
-          Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
-      .toRotationMatrix();
+  return localize::attitude_rotation(roll_rad, pitch_rad, yaw_rad);
 }
 
 RobotSpec parse_robot(std::string_view toml_text, std::string_view source_name) {

@@ -132,7 +132,7 @@ void SimGps::make_epoch(SimContext& context, SimSink& sink, SimStats& stats) {
   set_fix_utc(fix, utc_s);
   fix.valid = truth.fix;
   fix.has_quality = true;
-  fix.quality = truth.fix ? msg::GpsFixQuality::kGps : msg::GpsFixQuality::kInvalid;
+  fix.quality = truth.fix ? spec_.fix_quality : msg::GpsFixQuality::kInvalid;
   fix.has_satellites = true;
   fix.satellites_used = static_cast<std::uint8_t>(truth.fix ? truth.satellites_visible : 0);
   if (truth.fix) {

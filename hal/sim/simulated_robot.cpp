@@ -35,7 +35,7 @@ devices::Lms2xxScannerConfig lms2xx_config_for(const LaserSpec& spec) {
 
 pipeline::MapperConfig mapper_config_for(const RobotSpec& robot) {
   pipeline::MapperConfig config;
-  config.localizer.antenna_height_m = robot.gps.antenna_m.z();
+  config.localizer.antenna_m = robot.gps.antenna_m;
   config.laser_count = std::min(robot.lasers.size(), pipeline::kMaxLasers);
   // An LMS2xx scan has at most 401 beams (100 deg at 0.25 deg); a TiM's telegram says.
   constexpr std::size_t kLms2xxMaxBeams = 401;

@@ -25,8 +25,11 @@ std::string validate(const LocalizeConfig& c) {
   if (!noise_ok) {
     return "noise and spread parameters must be >= 0";
   }
-  if (!(c.user_range_error_m > 0.0) || !(c.min_gps_sigma_m > 0.0) || !(c.dgps_sigma_factor > 0.0)) {
-    return "user_range_error_m, min_gps_sigma_m and dgps_sigma_factor must be > 0";
+  if (!(c.user_range_error_m > 0.0) || !(c.min_gps_sigma_m > 0.0) || !(c.dgps_sigma_factor > 0.0) ||
+      !(c.rtk_fixed_sigma_m > 0.0) || !(c.rtk_float_sigma_m > 0.0) ||
+      !(c.rtk_yaw_roughening_rad >= 0.0) || !(c.rtk_bias_roughening_radps >= 0.0)) {
+    return "user_range_error_m, min_gps_sigma_m, dgps_sigma_factor, rtk_fixed_sigma_m and "
+           "rtk_float_sigma_m must be > 0, the rtk_*_roughening >= 0";
   }
   // Some of the error must be fast: a fix with only a slow error would pin the particles.
   if (!(c.gps_bias_share >= 0.0 && c.gps_bias_share <= 0.95)) {

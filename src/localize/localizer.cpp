@@ -5,22 +5,37 @@
 #include <numbers>
 #include <string>
 
+#include <Eigen/Geometry>
+
 #include "blockmap/core/check.hpp"
 
 namespace blockmap::localize {
+
+Eigen::Matrix3d attitude_rotation(double roll_rad, double pitch_rad, double yaw_rad) noexcept {
+  return (Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()) *
+          Eigen::AngleAxisd(pitch_rad, Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
+      .toRotationMatrix();
+}
 
 std::string validate(const LocalizerConfig& config) {
   std::string problem = validate(config.filter);
   if (!problem.empty()) {
     return problem;
   }
-  if (!(config.height_smoothing_s >= 0.0) || !(config.max_speed_mps > 0.0)) {
-    return "height_smoothing_s must be >= 0 and max_speed_mps > 0";
+  if (!(config.height_smoothing_s >= 0.0) || !(config.rtk_height_smoothing_s >= 0.0) ||
+      !(config.max_speed_mps > 0.0)) {
+    return "height_smoothing_s and rtk_height_smoothing_s must be >= 0 and max_speed_mps > 0";
   }
-  if (!(config.map_pose_smoothing_s >= 0.0) || !(config.map_pose_snap_m > 0.0) ||
+  if (!config.antenna_m.allFinite()) {
+    return "antenna_m must be finite";
+  }
+  if (!(config.map_pose_smoothing_s >= 0.0) || !(config.rtk_map_pose_smoothing_s >= 0.0) ||
+      !(config.map_pose_snap_m > 0.0) || !(config.map_pose_start_heading_spread_rad > 0.0) ||
       !(config.map_pose_snap_rad > 0.0) || config.map_pose_capacity < 2) {
-    return "map_pose_smoothing_s must be >= 0, map_pose_snap_m and map_pose_snap_rad > 0, and "
-           "map_pose_capacity at least 2";
+    return "map_pose_smoothing_s and rtk_map_pose_smoothing_s must be >= 0, map_pose_snap_m, "
+           "map_pose_snap_rad and map_pose_start_heading_spread_rad > 0, and map_pose_capacity "
+           "at least 2";
   }
   const double window_s =
       static_cast<double>(config.filter.history_steps) * config.filter.history_interval_s;
@@ -101,18 +116,28 @@ void Localizer::on_base(const msg::OdometrySample& odometry, const msg::ImuSampl
 }
 
 GpsOutcome Localizer::on_fix(const GpsObservation& fix, double up_m) noexcept {
-  const GpsOutcome outcome = filter_.update(fix);
+  // The antenna's mount turned by the base's pitch and roll: the filter turns it by each
+  // particle's heading.
+  const Eigen::Vector3d antenna_m =
+      attitude_rotation(roll_rad_, pitch_rad_, 0.0) * config_.antenna_m;
+  GpsObservation at_antenna = fix;
+  at_antenna.antenna_ahead_m = antenna_m.x();
+  at_antenna.antenna_left_m = antenna_m.y();
+  const GpsOutcome outcome = filter_.update(at_antenna);
+  // The fix moved to the robot frame's origin by the filter's heading after it, for the
+  // whole run's path (which takes fixes of the robot frame).
+  const double yaw_rad = filter_.started() ? filter_.estimate().yaw_rad : 0.0;
+  robot_fix_ = fix;
+  robot_fix_.east_m -= std::cos(yaw_rad) * antenna_m.x() - std::sin(yaw_rad) * antenna_m.y();
+  robot_fix_.north_m -= std::sin(yaw_rad) * antenna_m.x() + std::cos(yaw_rad) * antenna_m.y();
   if (outcome != GpsOutcome::kRejected) {
-    // The robot frame's height: the antenna's less its mount, low-passed.
-    const double height_m = up_m - config_.antenna_height_m;
-    if (!have_height_) {
-      height_m_ = height_m;
-      have_height_ = true;
+    follow_height(fix, up_m - antenna_m.z());
+    if (carrier_phase(fix.correction)) {
+      have_carrier_phase_fix_ = true;
+      last_carrier_phase_fix_ns_ = std::max(last_carrier_phase_fix_ns_, fix.stamp_ns);
     } else {
-      const double dt_s = std::max(0.0, seconds_from_ns(fix.stamp_ns - last_height_ns_));
-      height_m_ += (height_m - height_m_) * dt_s / (config_.height_smoothing_s + dt_s);
+      last_code_fix_ns_ = std::max(last_code_fix_ns_, fix.stamp_ns);
     }
-    last_height_ns_ = fix.stamp_ns;
   }
   record_if_stepped();
   if (outcome != GpsOutcome::kRejected && lagged_.empty() && filter_.started()) {
@@ -120,6 +145,26 @@ GpsOutcome Localizer::on_fix(const GpsObservation& fix, double up_m) noexcept {
                   BaseMotion{last_base_ns_, 0.0, 0.0, height_m_, roll_rad_, pitch_rad_});
   }
   return outcome;
+}
+
+bool Localizer::carrier_phase_holds(TimestampNs stamp_ns) const noexcept {
+  return have_carrier_phase_fix_ && last_carrier_phase_fix_ns_ > last_code_fix_ns_ &&
+         stamp_ns - last_carrier_phase_fix_ns_ <= kCarrierPhaseHoldNs;
+}
+
+void Localizer::follow_height(const GpsObservation& fix, double height_m) noexcept {
+  // The robot frame's height, low-passed: over minutes from a code fix, over about a second
+  // from a carrier-phase one.
+  if (!have_height_) {
+    height_m_ = height_m;
+    have_height_ = true;
+  } else {
+    const double smoothing_s =
+        carrier_phase(fix.correction) ? config_.rtk_height_smoothing_s : config_.height_smoothing_s;
+    const double dt_s = std::max(0.0, seconds_from_ns(fix.stamp_ns - last_height_ns_));
+    height_m_ += (height_m - height_m_) * dt_s / (smoothing_s + dt_s);
+  }
+  last_height_ns_ = fix.stamp_ns;
 }
 
 namespace {
@@ -185,8 +230,9 @@ void Localizer::advance_map_pose(const BaseMotion& motion) noexcept {
   odometry_pose_.y_m += travel_m * std::sin(odometry_heading_rad);
   odometry_pose_.yaw_rad = wrapped(odometry_pose_.yaw_rad + turn_rad);
   // The share of the correction due in dt (an exponential approach to the estimate).
-  const double share =
-      config_.map_pose_smoothing_s > 0.0 ? std::min(1.0, dt_s / config_.map_pose_smoothing_s) : 1.0;
+  const double smoothing_s = carrier_phase_holds(motion.stamp_ns) ? config_.rtk_map_pose_smoothing_s
+                                                                  : config_.map_pose_smoothing_s;
+  const double share = smoothing_s > 0.0 ? std::min(1.0, dt_s / smoothing_s) : 1.0;
   map_pose_.x_m += share * pending_x_m_;
   map_pose_.y_m += share * pending_y_m_;
   map_pose_.yaw_rad = wrapped(map_pose_.yaw_rad + share * pending_yaw_rad_);
@@ -198,6 +244,10 @@ void Localizer::advance_map_pose(const BaseMotion& motion) noexcept {
 }
 
 void Localizer::pull_map_pose(const Pose2& target, const BaseMotion& motion) noexcept {
+  if (!map_started_ && carrier_phase_holds(target.stamp_ns) &&
+      !(filter_.heading_spread_rad() <= config_.map_pose_start_heading_spread_rad)) {
+    return;  // the heading is not known yet
+  }
   distance_scale_ = filter_.mean_distance_scale();
   yaw_rate_bias_radps_ = filter_.mean_yaw_rate_bias_radps();
   const double gap_x_m = target.x_m - map_pose_.x_m;

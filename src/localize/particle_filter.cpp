@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <utility>
 
@@ -217,16 +218,40 @@ void ParticleFilter::apply_motion() noexcept {
 }
 
 double ParticleFilter::fix_sigma_m(const GpsObservation& fix) const noexcept {
-  // Per axis: the horizontal RMS is UERE x HDOP, shared by east and north.
-  const double sigma = config_.user_range_error_m * std::max(fix.hdop, 0.0) *
-                       (fix.differential ? config_.dgps_sigma_factor : 1.0) / std::numbers::sqrt2;
+  // Per axis: the horizontal RMS shared by east and north.
+  switch (fix.correction) {
+    case GpsCorrection::kRtkFixed:
+      return config_.rtk_fixed_sigma_m / std::numbers::sqrt2;
+    case GpsCorrection::kRtkFloat:
+      return config_.rtk_float_sigma_m / std::numbers::sqrt2;
+    case GpsCorrection::kDifferential:
+    case GpsCorrection::kNone:
+      break;
+  }
+  // A code fix: UERE x HDOP.
+  const double differential =
+      fix.correction == GpsCorrection::kDifferential ? config_.dgps_sigma_factor : 1.0;
+  const double sigma =
+      config_.user_range_error_m * std::max(fix.hdop, 0.0) * differential / std::numbers::sqrt2;
   return std::max(sigma, config_.min_gps_sigma_m);
+}
+
+double ParticleFilter::start_spread_m(const GpsObservation& fix) const noexcept {
+  return std::min(config_.initial_position_sigma_m, 3.0 * fix_sigma_m(fix));
 }
 
 ParticleFilter::FixError ParticleFilter::fix_error(const GpsObservation& fix) const noexcept {
   const double sigma_m = fix_sigma_m(fix);
-  const double white_m = config_.gps_white_sigma_m;
   FixError error;
+  if (carrier_phase(fix.correction)) {
+    // Centimetres, correlated over seconds at most: taken as white. Each particle's estimate
+    // of a slow error would otherwise grow to hide a wrong position: after the heading's
+    // first seconds every particle has drifted alike, and none is left near the fix to
+    // select, while a few centimetres of error state hide a decimetre within the gates.
+    error.white_variance_m2 = sigma_m * sigma_m;
+    return error;
+  }
+  const double white_m = config_.gps_white_sigma_m;
   error.slow_variance_m2 = config_.gps_bias_share * sigma_m * sigma_m;
   error.fast_variance_m2 =
       std::max(0.0, (1.0 - config_.gps_bias_share) * sigma_m * sigma_m - white_m * white_m);
@@ -239,7 +264,7 @@ GpsOutcome ParticleFilter::update(const GpsObservation& fix) noexcept {
   apply_motion();  // the particles where the odometry says they are at the fix
   const FixError error = fix_error(fix);
   if (!started_) {
-    start_at(fix, config_.initial_position_sigma_m, false);
+    start_at(fix, start_spread_m(fix), false);
     return GpsOutcome::kStarted;
   }
   advance_gps_error(seconds_from_ns(fix.stamp_ns - gps_error_stamp_ns_), error);
@@ -251,7 +276,7 @@ GpsOutcome ParticleFilter::update(const GpsObservation& fix) noexcept {
     }
     // GPS has disagreed for too long: the filter is wrong, not the receiver.
     ++counters_.recoveries;
-    start_at(fix, std::max(fix_sigma_m(fix), config_.initial_position_sigma_m), true);
+    start_at(fix, std::max(fix_sigma_m(fix), start_spread_m(fix)), true);
     return GpsOutcome::kRecovered;
   }
   rejected_in_a_row_ = 0;
@@ -259,6 +284,9 @@ GpsOutcome ParticleFilter::update(const GpsObservation& fix) noexcept {
   weigh(fix, error);
   if (effective_particles() < config_.resample_effective_fraction * static_cast<double>(count_)) {
     resample();
+    if (carrier_phase(fix.correction)) {
+      roughen();
+    }
   }
   return GpsOutcome::kUsed;
 }
@@ -294,7 +322,7 @@ double ParticleFilter::fix_innovation_variance_m2(const FixError& error) const n
 bool ParticleFilter::is_outlier(const GpsObservation& fix, const FixError& error) const noexcept {
   // The fix against where the particles expect it (position plus their estimate of the
   // receiver's error), allowing for the expectation's variance and the particles' spread.
-  const PositionStats where = expected_fix_stats();
+  const PositionStats where = expected_fix_stats(fix);
   const double innovation_m = std::hypot(fix.east_m - where.mean_x_m, fix.north_m - where.mean_y_m);
   const double gate_m =
       config_.outlier_gate_sigmas *
@@ -321,24 +349,30 @@ void ParticleFilter::start_at(const GpsObservation& fix, double sigma_m,
   const double draw_sigma_m = std::sqrt(draw_variance_m2);
   const double reweigh = 0.5 / total_m2 - 0.5 / draw_variance_m2;
   for (std::size_t i = 0; i < count_; ++i) {
-    x_m_[i] = fix.east_m + draw_sigma_m * gaussian();
-    y_m_[i] = fix.north_m + draw_sigma_m * gaussian();
-    const double dx = x_m_[i] - fix.east_m;
-    const double dy = y_m_[i] - fix.north_m;
-    weight_[i] = std::exp(-(dx * dx + dy * dy) * reweigh);
-    gps_slow_x_m_[i] = slow_gain * (fix.east_m - x_m_[i]);
-    gps_slow_y_m_[i] = slow_gain * (fix.north_m - y_m_[i]);
-    gps_fast_x_m_[i] = fast_gain * (fix.east_m - x_m_[i]);
-    gps_fast_y_m_[i] = fast_gain * (fix.north_m - y_m_[i]);
     if (!keep_heading) {
       // Unknown heading: spread evenly over initial_yaw_sigma_rad either side of east.
       const double share = (static_cast<double>(i) + 0.5) / static_cast<double>(count_);
       yaw_rad_[i] = wrap_angle((2.0 * share - 1.0) * config_.initial_yaw_sigma_rad);
-      scale_[i] = 1.0 + config_.initial_scale_sigma * gaussian();
-      yaw_rate_bias_radps_[i] = config_.initial_yaw_rate_bias_sigma_radps * gaussian();
     }
     cos_yaw_[i] = std::cos(yaw_rad_[i]);
     sin_yaw_[i] = std::sin(yaw_rad_[i]);
+    // The antenna drawn around the fix; the robot frame's origin behind it by the mount as
+    // this particle's heading turns it.
+    const double dx = draw_sigma_m * gaussian();
+    const double dy = draw_sigma_m * gaussian();
+    x_m_[i] =
+        fix.east_m + dx - (cos_yaw_[i] * fix.antenna_ahead_m - sin_yaw_[i] * fix.antenna_left_m);
+    y_m_[i] =
+        fix.north_m + dy - (sin_yaw_[i] * fix.antenna_ahead_m + cos_yaw_[i] * fix.antenna_left_m);
+    weight_[i] = std::exp(-(dx * dx + dy * dy) * reweigh);
+    gps_slow_x_m_[i] = -slow_gain * dx;
+    gps_slow_y_m_[i] = -slow_gain * dy;
+    gps_fast_x_m_[i] = -fast_gain * dx;
+    gps_fast_y_m_[i] = -fast_gain * dy;
+    if (!keep_heading) {
+      scale_[i] = 1.0 + config_.initial_scale_sigma * gaussian();
+      yaw_rate_bias_radps_[i] = config_.initial_yaw_rate_bias_sigma_radps * gaussian();
+    }
   }
   normalize_weights();
   if (!started_ || !keep_heading) {
@@ -372,8 +406,8 @@ void ParticleFilter::weigh(const GpsObservation& fix, const FixError& error) noe
   const double fast_gain = (p.slow_fast + p.fast_fast) / innovation_variance_m2;
   double total = 0.0;
   for (std::size_t i = 0; i < count_; ++i) {
-    const double dx = fix.east_m - x_m_[i] - gps_slow_x_m_[i] - gps_fast_x_m_[i];
-    const double dy = fix.north_m - y_m_[i] - gps_slow_y_m_[i] - gps_fast_y_m_[i];
+    const double dx = fix.east_m - antenna_x_m(i, fix) - gps_slow_x_m_[i] - gps_fast_x_m_[i];
+    const double dy = fix.north_m - antenna_y_m(i, fix) - gps_slow_y_m_[i] - gps_fast_y_m_[i];
     const double squared = dx * dx + dy * dy;
     scratch_[i] = squared;
     weight_[i] *= squared > gate_squared ? 0.0 : std::exp(-squared * inverse_two_variance);
@@ -455,6 +489,15 @@ void ParticleFilter::resample() noexcept {
   std::copy_n(trace_.begin(), count_, ancestor_.begin());
   std::fill_n(weight_.begin(), count_, step);
   resampled_since_push_ = true;
+}
+
+void ParticleFilter::roughen() noexcept {
+  for (std::size_t i = 0; i < count_; ++i) {
+    yaw_rad_[i] = wrap_angle(yaw_rad_[i] + config_.rtk_yaw_roughening_rad * gaussian());
+    cos_yaw_[i] = std::cos(yaw_rad_[i]);
+    sin_yaw_[i] = std::sin(yaw_rad_[i]);
+    yaw_rate_bias_radps_[i] += config_.rtk_bias_roughening_radps * gaussian();
+  }
 }
 
 std::size_t ParticleFilter::slot_of_age(std::size_t age) const noexcept {
@@ -678,22 +721,9 @@ Pose2 ParticleFilter::estimate() const noexcept {
   return pose;
 }
 
-ParticleFilter::PositionStats ParticleFilter::position_stats() const noexcept {
-  return weighted_stats(false);
-}
-
-ParticleFilter::PositionStats ParticleFilter::expected_fix_stats() const noexcept {
-  return weighted_stats(true);
-}
-
-ParticleFilter::PositionStats ParticleFilter::weighted_stats(bool with_gps_error) const noexcept {
-  // The weighted mean and spread of the positions, or of the fixes the particles expect.
-  const auto x_at = [&](std::size_t i) {
-    return x_m_[i] + (with_gps_error ? gps_slow_x_m_[i] + gps_fast_x_m_[i] : 0.0);
-  };
-  const auto y_at = [&](std::size_t i) {
-    return y_m_[i] + (with_gps_error ? gps_slow_y_m_[i] + gps_fast_y_m_[i] : 0.0);
-  };
+template <typename X, typename Y>
+ParticleFilter::PositionStats ParticleFilter::weighted_stats(const X& x_at,
+                                                             const Y& y_at) const noexcept {
   PositionStats stats;
   for (std::size_t i = 0; i < count_; ++i) {
     stats.mean_x_m += weight_[i] * x_at(i);
@@ -707,6 +737,30 @@ ParticleFilter::PositionStats ParticleFilter::weighted_stats(bool with_gps_error
   }
   stats.spread_m = std::sqrt(variance);
   return stats;
+}
+
+ParticleFilter::PositionStats ParticleFilter::position_stats() const noexcept {
+  return weighted_stats([&](std::size_t i) { return x_m_[i]; },
+                        [&](std::size_t i) { return y_m_[i]; });
+}
+
+ParticleFilter::PositionStats ParticleFilter::expected_fix_stats(
+    const GpsObservation& fix) const noexcept {
+  return weighted_stats(
+      [&](std::size_t i) { return antenna_x_m(i, fix) + gps_slow_x_m_[i] + gps_fast_x_m_[i]; },
+      [&](std::size_t i) { return antenna_y_m(i, fix) + gps_slow_y_m_[i] + gps_fast_y_m_[i]; });
+}
+
+double ParticleFilter::heading_spread_rad() const noexcept {
+  double cos_sum = 0.0;
+  double sin_sum = 0.0;
+  for (std::size_t i = 0; i < count_; ++i) {
+    cos_sum += weight_[i] * cos_yaw_[i];
+    sin_sum += weight_[i] * sin_yaw_[i];
+  }
+  const double resultant = std::hypot(cos_sum, sin_sum);
+  return resultant > 0.0 ? std::sqrt(-2.0 * std::log(std::min(resultant, 1.0)))
+                         : std::numeric_limits<double>::infinity();
 }
 
 double ParticleFilter::position_spread_m() const noexcept {

@@ -71,8 +71,10 @@ std::string validate(const PathSmootherConfig& config) {
     return "path smoother: keyframe_spacing_m and the motion's sigmas must be positive";
   }
   if (!positive(config.bias_sigma_m) || !positive(config.bias_time_s) ||
-      !positive(config.fix_sigma_m)) {
-    return "path smoother: bias_sigma_m, bias_time_s and fix_sigma_m must be positive";
+      !positive(config.fix_sigma_m) || !positive(config.rtk_fixed_sigma_m) ||
+      !positive(config.rtk_float_sigma_m)) {
+    return "path smoother: bias_sigma_m, bias_time_s, fix_sigma_m, rtk_fixed_sigma_m and "
+           "rtk_float_sigma_m must be positive";
   }
   if (config.iterations == 0) {
     return "path smoother: iterations must be at least 1";
@@ -109,9 +111,16 @@ std::size_t PathSmoother::memory_bytes() const noexcept {
   return keyframes_.size_bytes() + blocks_.size_bytes() + ties_.size_bytes();
 }
 
+void PathSmoother::FixMean::merge(double east, double north, double more_weight) noexcept {
+  const double total = weight + more_weight;
+  east_m += (east - east_m) * more_weight / total;
+  north_m += (north - north_m) * more_weight / total;
+  weight = total;
+}
+
 void PathSmoother::add(const Pose2& odometry, const Pose2& drawn,
-                       const std::optional<Eigen::Vector2d>& fix_m,
-                       double fix_sigma_scale) noexcept {
+                       const std::optional<Eigen::Vector2d>& fix_m, double fix_sigma_scale,
+                       GpsCorrection correction) noexcept {
   if (count_ > 0 && odometry.stamp_ns < keyframes_[count_ - 1].odometry.stamp_ns) {
     ++counters_.refused;
     return;
@@ -133,12 +142,14 @@ void PathSmoother::add(const Pose2& odometry, const Pose2& drawn,
         keyframes_[i].state[kY] += dy;
       }
     }
-    const double sigma_m = config_.fix_sigma_m * std::max(fix_sigma_scale, 1e-3);
-    const double weight = 1.0 / (sigma_m * sigma_m);
-    const double total = keyframe.fix_weight + weight;
-    keyframe.fix_east_m += (fix_m->x() - keyframe.fix_east_m) * weight / total;
-    keyframe.fix_north_m += (fix_m->y() - keyframe.fix_north_m) * weight / total;
-    keyframe.fix_weight = total;
+    double sigma_m = config_.fix_sigma_m * std::max(fix_sigma_scale, 1e-3);
+    FixMean* into = &keyframe.code_fixes;
+    if (carrier_phase(correction)) {
+      sigma_m = correction == GpsCorrection::kRtkFixed ? config_.rtk_fixed_sigma_m
+                                                       : config_.rtk_float_sigma_m;
+      into = &keyframe.carrier_fixes;
+    }
+    into->merge(fix_m->x(), fix_m->y(), 1.0 / (sigma_m * sigma_m));
     ++counters_.fixes;
     return;
   }
@@ -195,13 +206,13 @@ void PathSmoother::thin() noexcept {
     }
     Keyframe& into = keyframes_[kept - 1];
     const Keyframe& from = keyframes_[i];
-    if (from.fix_weight > 0.0) {
-      const double east_m = from.fix_east_m - (from.state[kX] - into.state[kX]);
-      const double north_m = from.fix_north_m - (from.state[kY] - into.state[kY]);
-      const double total = into.fix_weight + from.fix_weight;
-      into.fix_east_m += (east_m - into.fix_east_m) * from.fix_weight / total;
-      into.fix_north_m += (north_m - into.fix_north_m) * from.fix_weight / total;
-      into.fix_weight = total;
+    const double dx_m = from.state[kX] - into.state[kX];
+    const double dy_m = from.state[kY] - into.state[kY];
+    for (const auto member : {&Keyframe::code_fixes, &Keyframe::carrier_fixes}) {
+      const FixMean& fixes = from.*member;
+      if (fixes.weight > 0.0) {
+        (into.*member).merge(fixes.east_m - dx_m, fixes.north_m - dy_m, fixes.weight);
+      }
     }
   }
   count_ = kept;
@@ -279,21 +290,27 @@ void PathSmoother::accumulate_receiver(std::size_t i) noexcept {
 }
 
 void PathSmoother::accumulate_fix(std::size_t i) noexcept {
-  const Keyframe& keyframe = keyframes_[i];
-  if (keyframe.fix_weight <= 0.0) {
+  accumulate_fix(i, keyframes_[i].code_fixes, true);
+  accumulate_fix(i, keyframes_[i].carrier_fixes, false);
+}
+
+void PathSmoother::accumulate_fix(std::size_t i, const FixMean& fixes, bool slow_error) noexcept {
+  if (fixes.weight <= 0.0) {
     return;
   }
-  // position + slow error = fix.
+  // position (+ slow error) = fix.
+  const Keyframe& keyframe = keyframes_[i];
+  const double bias = slow_error ? 1.0 : 0.0;
   const Eigen::Vector2d residual(
-      keyframe.state[kX] + keyframe.state[kBiasX] - keyframe.fix_east_m,
-      keyframe.state[kY] + keyframe.state[kBiasY] - keyframe.fix_north_m);
+      keyframe.state[kX] + bias * keyframe.state[kBiasX] - fixes.east_m,
+      keyframe.state[kY] + bias * keyframe.state[kBiasY] - fixes.north_m);
   Jacobian2 j = Jacobian2::Zero();
   j(0, kX) = 1.0;
-  j(0, kBiasX) = 1.0;
+  j(0, kBiasX) = bias;
   j(1, kY) = 1.0;
-  j(1, kBiasY) = 1.0;
-  matrix(blocks_[i].diagonal) += keyframe.fix_weight * j.transpose() * j;
-  vector(blocks_[i].gradient) += keyframe.fix_weight * j.transpose() * residual;
+  j(1, kBiasY) = bias;
+  matrix(blocks_[i].diagonal) += fixes.weight * j.transpose() * j;
+  vector(blocks_[i].gradient) += fixes.weight * j.transpose() * residual;
 }
 
 bool PathSmoother::tie(std::uint32_t key, const WallLook& earlier, const WallLook& later) noexcept {

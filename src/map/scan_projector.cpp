@@ -8,13 +8,6 @@
 namespace blockmap::map {
 namespace {
 
-Eigen::Matrix3d rotation_of(double roll_rad, double pitch_rad, double yaw_rad) noexcept {
-  return (Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()) *
-          Eigen::AngleAxisd(pitch_rad, Eigen::Vector3d::UnitY()) *
-          Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
-      .toRotationMatrix();
-}
-
 Eigen::Vector3d position_of(const localize::Pose3& pose) noexcept {
   return {pose.x_m, pose.y_m, pose.z_m};
 }
@@ -22,13 +15,14 @@ Eigen::Vector3d position_of(const localize::Pose3& pose) noexcept {
 }  // namespace
 
 Eigen::Matrix3d robot_rotation(const localize::Pose3& pose) noexcept {
-  return rotation_of(pose.roll_rad, pose.pitch_rad, pose.yaw_rad);
+  return localize::attitude_rotation(pose.roll_rad, pose.pitch_rad, pose.yaw_rad);
 }
 
 ScanProjector::ScanProjector(const SensorMount& mount, const ScanProjectorConfig& config) noexcept
     : mount_(mount),
       config_(config),
-      mount_rotation_(rotation_of(mount.roll_rad, mount.pitch_rad, mount.yaw_rad)) {}
+      mount_rotation_(localize::attitude_rotation(mount.roll_rad, mount.pitch_rad, mount.yaw_rad)) {
+}
 
 TimestampNs ScanProjector::beam_stamp_ns(const msg::LaserScan& scan, std::uint32_t beam) noexcept {
   return scan.header.stamp_ns + ns_from_seconds(static_cast<double>(beam) * scan.time_increment_s);

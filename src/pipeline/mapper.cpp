@@ -365,13 +365,17 @@ void Mapper::apply(const Pending& message) noexcept {
         default:
           break;
       }
-      if (path_on_) {
+      // A carrier-phase fix holds the scans where it puts them, unmatched (project()): no
+      // matched scan will come for it to join.
+      if (path_on_ && !localize::carrier_phase(message.fix.correction)) {
         if (path_fix_count_ == path_fixes_.size()) {
           path_fix_first_ = (path_fix_first_ + 1) % path_fixes_.size();
           --path_fix_count_;
           ++counters_.rigid_path_fixes_dropped;
         }
-        path_fixes_[(path_fix_first_ + path_fix_count_) % path_fixes_.size()] = message.fix;
+        // Where the filter put the robot frame for it: the antenna's mount taken out.
+        path_fixes_[(path_fix_first_ + path_fix_count_) % path_fixes_.size()] =
+            localizer_.last_robot_fix();
         ++path_fix_count_;
       }
       break;
@@ -513,7 +517,14 @@ void Mapper::project(const QueuedScan& queued, std::span<const std::uint16_t> co
   }
   const std::size_t count = projectors_[queued.laser].project(scan, first, last, points_);
   if (matcher_.enabled()) {
-    correct_by_scan_matching(queued.laser, first, last, points_.first(count));
+    if (!localizer_.carrier_phase_holds(first.stamp_ns)) {
+      correct_by_scan_matching(queued.laser, first, last, points_.first(count));
+    } else if (!matching_paused_) {
+      // Centimetre fixes hold the poses tighter than a scan matcher's own drift: the scans
+      // are drawn as the filter puts them. The matcher's grid starts over when they stop.
+      matching_paused_ = true;
+      ++counters_.scan_matching_pauses;
+    }
   }
   // The window follows the robot: tiles it leaves behind go to the registry as they leave.
   window_.recentre(Eigen::Vector2d(first.x_m, first.y_m), tile_leaving_);
@@ -543,7 +554,9 @@ void Mapper::correct_by_scan_matching(std::size_t laser, localize::Pose3& first,
     // matched scan: the grid drawn with the poses before is of another frame. By the snap's
     // stamp, not by when the localizer made it: it runs ahead of the scans by however the
     // messages came.
-    if (localizer_.map_pose_snapped_between(last_matched_scan_ns_, first.stamp_ns)) {
+    if (matching_paused_ ||
+        localizer_.map_pose_snapped_between(last_matched_scan_ns_, first.stamp_ns)) {
+      matching_paused_ = false;
       matcher_.reset();
       path_rebase_due_ = true;  // the matcher's frame starts over
     }
@@ -604,7 +617,8 @@ void Mapper::feed_rigid_path(TimestampNs stamp_ns, const localize::Pose2& drawn,
   bool added = false;
   while (path_fix_count_ > 0 && path_fixes_[path_fix_first_].stamp_ns <= stamp_ns) {
     const localize::GpsObservation& fix = path_fixes_[path_fix_first_];
-    path_.add(matched, drawn_at, Eigen::Vector2d(fix.east_m, fix.north_m), std::max(fix.hdop, 0.5));
+    path_.add(matched, drawn_at, Eigen::Vector2d(fix.east_m, fix.north_m), std::max(fix.hdop, 0.5),
+              fix.correction);
     path_fix_first_ = (path_fix_first_ + 1) % path_fixes_.size();
     --path_fix_count_;
     added = true;

@@ -24,7 +24,8 @@ struct StartedFilter {
       : config(config_for(particles)), arena(ParticleFilter::arena_bytes(config)) {
     filter.init(arena, config);
     arena.seal();
-    static_cast<void>(filter.update(GpsObservation{0, 0.0, 0.0, 0.9, false}));
+    static_cast<void>(
+        filter.update(GpsObservation{0, 0.0, 0.0, 0.9, blockmap::localize::GpsCorrection::kNone}));
   }
   static LocalizeConfig config_for(std::int64_t particles) {
     LocalizeConfig c;
@@ -54,8 +55,9 @@ void BM_PredictAndUpdate(benchmark::State& state) {
     ++k;
     filter.predict(stamp, 0.012, 0.05 * std::sin(0.01 * static_cast<double>(k)));
     const double x = 0.012 * static_cast<double>(k);
-    benchmark::DoNotOptimize(filter.update(
-        GpsObservation{stamp, x, 0.5 * std::sin(0.003 * static_cast<double>(k)), 0.9, false}));
+    benchmark::DoNotOptimize(
+        filter.update(GpsObservation{stamp, x, 0.5 * std::sin(0.003 * static_cast<double>(k)), 0.9,
+                                     blockmap::localize::GpsCorrection::kNone}));
   }
   started.report(state);
 }

@@ -63,6 +63,31 @@ TEST(ParticleFilter, FindsItsHeadingAndTracksTheLoopBetterThanGps) {
   EXPECT_EQ(recoveries, 0u);
 }
 
+// A carrier-phase (RTK) receiver: 2 cm of error, of which 1.5 cm multipath. The fixes say
+// so (GGA quality 4), and the filter takes them at their word: the particles start within a
+// few centimetres of the first fix and stay there, where a code fix's floor (min_gps_sigma_m)
+// would have kept them half a metre wide.
+TEST(ParticleFilter, RtkFixesHoldThePoseToCentimetres) {
+  BLOCKMAP_LONG_TEST();
+  DriveOptions options;
+  options.gps_error_rms_m = 0.02;
+  options.gps_multipath_rms_m = 0.015;
+  options.gps_correction = GpsCorrection::kRtkFixed;
+  LocalizeConfig config;
+  config.particle_count = 2000;  // the mapper's
+  FilterFixture fixture(config);
+  const RunErrors errors = run(fixture.filter, drive(options), options, 10.0);
+  std::printf(
+      "RTK: filter %.3f m, smoothed %.3f m, gps %.3f m, heading %.2f deg, smoothed %.2f deg\n",
+      errors.filter_rms_m, errors.smoothed_rms_m, errors.gps_rms_m, errors.heading_rms_deg,
+      errors.smoothed_heading_rms_deg);
+  EXPECT_LT(errors.filter_rms_m, 0.05);
+  EXPECT_LT(errors.smoothed_rms_m, 0.05);
+  EXPECT_LT(errors.heading_rms_deg, 0.5);
+  EXPECT_LT(errors.smoothed_heading_rms_deg, 0.5);
+  EXPECT_EQ(fixture.filter.counters().recoveries, 0u);
+}
+
 TEST(ParticleFilter, LearnsTheGyroscopeBias) {
   // The survivors carry the gyroscope's bias. (Their distance scale stays near 1 on this loop:
   // 1.5 % of a 60 m leg is less than the GPS error; docs/localize.md.)

@@ -34,8 +34,8 @@ TEST(LocalizeBudget, StepsAllocateNothingAfterInitAndFitTheirBudget) {
       const TimestampNs stamp = TimestampNs{k} * 10'000'000;
       filter.predict(stamp, 0.01, 0.0);
       if (k % 25 == 0) {
-        static_cast<void>(
-            filter.update(GpsObservation{stamp, 0.01 * k, 0.3 * std::sin(0.01 * k), 1.0, false}));
+        static_cast<void>(filter.update(
+            GpsObservation{stamp, 0.01 * k, 0.3 * std::sin(0.01 * k), 1.0, GpsCorrection::kNone}));
       }
       finalized += filter.drain_final(drained);
     }
@@ -71,7 +71,8 @@ TEST(LocalizeBudget, TheLocalizerAllocatesNothingAfterInitEither) {
       imu.pitch_rad = 0.02 * std::sin(0.1 * k);
       localizer.on_base(odometry, imu);
       if (k % 25 == 0) {
-        static_cast<void>(localizer.on_fix(GpsObservation{stamp, 0.01 * k, 0.0, 1.0, false}, 1.3));
+        static_cast<void>(
+            localizer.on_fix(GpsObservation{stamp, 0.01 * k, 0.0, 1.0, GpsCorrection::kNone}, 1.3));
       }
       finalized += localizer.drain_final(poses);
     }

@@ -84,6 +84,7 @@ class DecodingSink final : public SimSink {
  public:
   explicit DecodingSink(const Simulation& simulation)
       : frame_(simulation.world().site.origin),
+        gps_quality_(simulation.robot().gps.fix_quality),
         rmp_(rmp_config(simulation.robot())),
         lasers_(simulation.robot().lasers.size()) {
     for (Laser& laser : lasers_) {
@@ -190,9 +191,13 @@ class DecodingSink final : public SimSink {
       const Vec3 enu = frame_.to_enu_m(
           {fix.latitude_deg, fix.longitude_deg, fix.altitude_msl_m + fix.geoid_separation_m});
       const Vec3 expected = truth.antenna_m + truth.error_m;
-      EXPECT_NEAR(enu.x(), expected.x(), 0.02) << "five decimals of a minute";
-      EXPECT_NEAR(enu.y(), expected.y(), 0.02);
-      EXPECT_NEAR(enu.z(), expected.z(), 0.06) << "one decimal of a metre";
+      EXPECT_EQ(fix.quality, gps_quality_);
+      // Five decimals of a minute and one of a metre; an RTK fix seven and three.
+      const bool carrier_phase = gps_quality_ == msg::GpsFixQuality::kRtkFixed;
+      const double horizontal_m = carrier_phase ? 0.001 : 0.02;
+      EXPECT_NEAR(enu.x(), expected.x(), horizontal_m);
+      EXPECT_NEAR(enu.y(), expected.y(), horizontal_m);
+      EXPECT_NEAR(enu.z(), expected.z(), carrier_phase ? 0.002 : 0.06);
       EXPECT_NEAR(fix.hdop, truth.hdop, 0.05);
       gps_truth_.pop_front();
       ++fixes;
@@ -200,6 +205,7 @@ class DecodingSink final : public SimSink {
   }
 
   LocalEnuFrame frame_;
+  msg::GpsFixQuality gps_quality_;
   rmp::Decoder rmp_;
   nmea::Decoder nmea_;
   std::vector<Laser> lasers_;
@@ -213,6 +219,15 @@ TEST(Simulation, ItsBytesDecodeBackToWhatWasSimulated) {
   simulation.run(sink);
   EXPECT_NEAR(sink.cycles, 800, 2);
   EXPECT_GE(sink.scans, 2 * 8 * 75 - 10);
+  EXPECT_GE(sink.fixes, 8 * 4 - 1);
+}
+
+// An RTK receiver says so in GGA (quality 4) and writes its centimetre fixes finely enough:
+// they decode to within a millimetre of what was simulated.
+TEST(Simulation, AnRtkReceiversFixesDecodeToTheMillimetre) {
+  Simulation simulation(load_world("usc_block"), load_robot("paper_rmp_rtk"), options_for(8.0));
+  DecodingSink sink(simulation);
+  simulation.run(sink);
   EXPECT_GE(sink.fixes, 8 * 4 - 1);
 }
 

@@ -151,6 +151,32 @@ TEST(RobotFiles, ThePapersRobotLoads) {
   EXPECT_DOUBLE_EQ(robot.gps.horizontal_error_rms_m, 2.0);
 }
 
+TEST(RobotFiles, ThePapersRobotWithAnRtkReceiverDiffersByItsReceiverAlone) {
+  const RobotSpec paper = load_robot("paper_rmp");
+  const RobotSpec rtk = load_robot("paper_rmp_rtk");
+  EXPECT_EQ(paper.gps.fix_quality, msg::GpsFixQuality::kGps);
+  EXPECT_EQ(rtk.gps.fix_quality, msg::GpsFixQuality::kRtkFixed);
+  EXPECT_DOUBLE_EQ(rtk.gps.horizontal_error_rms_m, 0.02);
+  EXPECT_EQ(rtk.gps.antenna_m, paper.gps.antenna_m);
+  ASSERT_EQ(rtk.lasers.size(), paper.lasers.size());
+  for (std::size_t i = 0; i < paper.lasers.size(); ++i) {
+    EXPECT_EQ(rtk.lasers[i].name, paper.lasers[i].name);
+    EXPECT_EQ(rtk.lasers[i].mount.position_m, paper.lasers[i].mount.position_m);
+  }
+  EXPECT_DOUBLE_EQ(rtk.base.track_m, paper.base.track_m);
+  EXPECT_DOUBLE_EQ(rtk.base.left_scale_error, paper.base.left_scale_error);
+}
+
+TEST(RobotFiles, AnUnknownFixQualityIsRefusedWithTheChoices) {
+  try {
+    (void)parse_robot("name = \"r\"\n[gps]\nfix_quality = \"ppp\"\n", "r.toml");
+    FAIL() << "ppp is no fix quality the simulated receiver reports";
+  } catch (const ConfigError& error) {
+    EXPECT_EQ(std::string(error.what()),
+              "r.toml: gps.fix_quality: expected gps, dgps, rtk_float or rtk_fixed");
+  }
+}
+
 TEST(RobotFiles, ALaserTooFastForItsLineIsRefusedWithTheReason) {
   const std::string text = R"(
 name = "slow"

@@ -29,7 +29,8 @@ struct DriveOptions {
   double gps_multipath_rms_m = 1.6;
   double gps_correlation_s = 60.0;
   double gps_multipath_correlation_s = 2.0;
-  double outage_from_s = -1.0;  // GPS silent in [from, to)
+  GpsCorrection gps_correction = GpsCorrection::kNone;  // what the fixes say they are
+  double outage_from_s = -1.0;                          // GPS silent in [from, to)
   double outage_to_s = -1.0;
   std::uint64_t seed = 1;
 };
@@ -103,7 +104,7 @@ inline std::vector<Sample> drive(const DriveOptions& options) {
       const double t = static_cast<double>(k) * dt;
       s.has_fix = !(t >= options.outage_from_s && t < options.outage_to_s);
       s.fix = GpsObservation{s.stamp_ns, x + slow.x + multipath.x, y + slow.y + multipath.y, 0.9,
-                             false};
+                             options.gps_correction};
     }
     samples.push_back(s);
   }

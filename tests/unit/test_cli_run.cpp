@@ -210,6 +210,7 @@ TEST(RunCommand, TheConfigSetsTheWindowAndTheExtractionsAndEveryMistakeNamesItsK
       {"[free_space]\ncells = 9\n", "free_space.cells: unknown key"},
       {"[rigid_path]\nenabled = true\nfix_sigma = 3\n", "rigid_path.fix_sigma: unknown key"},
       {"[rigid_path]\nview_change_m = 0\n", "rigid_path.view_change_m: must be > 0"},
+      {"[rigid_path]\nrtk_fixed_sigma_m = -0.1\n", "rigid_path.rtk_fixed_sigma_m: must be > 0"},
       {"[registry]\nmax_final_planes = 0\n", "registry.max_final_planes: must be"},
       {"[registry]\nmax_live = 9\n", "registry.max_live: unknown key"},
       {"[rigid_path]\nenabled = true\n[mapper]\npose_lag_s = 4.0\n",

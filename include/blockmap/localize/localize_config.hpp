@@ -34,7 +34,16 @@ struct LocalizeConfig {
   // a 2 m receiver), at least min_gps_sigma_m.
   double user_range_error_m = 2.2;
   double min_gps_sigma_m = 0.5;
-  double dgps_sigma_factor = 0.5;  // DGPS and RTK fixes are better than their HDOP says
+  double dgps_sigma_factor = 0.5;  // DGPS fixes are better than their HDOP says
+  // Carrier-phase (RTK) fixes: their horizontal RMS error, whatever the HDOP (a fixed
+  // solution is good to centimetres, a float one to decimetres). min_gps_sigma_m is for code
+  // fixes only.
+  double rtk_fixed_sigma_m = 0.03;
+  double rtk_float_sigma_m = 0.3;
+  // After a resampling on a carrier-phase fix, each particle's heading and gyroscope bias are
+  // jittered by these (ParticleFilter::roughen says why).
+  double rtk_yaw_roughening_rad = 0.003;
+  double rtk_bias_roughening_radps = 0.001;
   // A receiver's error is not independent from fix to fix. gps_bias_share of its variance is
   // slow (orbits, clocks, the atmosphere: it wanders with gps_bias_correlation_s); the rest,
   // less a white floor of gps_white_sigma_m, is multipath, correlated over

@@ -4,17 +4,25 @@
 // filter's planar poses into 3D ones with the base's own pitch and roll (the seed: the RMP
 // "pitches considerably", which the scan projector must undo) and a height from GPS.
 //
-// Height: the filter is planar. z is the GPS antenna's height in the local frame less the
-// antenna's height on the robot, low-passed over height_smoothing_s: a city block is nearly
-// flat, and the receiver's vertical error (about 3 m) is larger than any slope the robot sees
-// in a minute. The antenna's horizontal offset on the robot is not modelled (a few
-// centimetres on the paper's robot, against 2 m of GPS error).
+// The receiver reports where its antenna is; the filter tracks the robot frame's origin. Each
+// fix carries the antenna's mount turned by the base's pitch and roll of the moment, and each
+// particle expects the fix there from its own position and heading: a mast-top antenna on the
+// pitching RMP swings a decimetre fore and aft, nothing against a code fix's 2 m but several
+// times an RTK fix's error.
+//
+// Height: the filter is planar. z is the antenna's height in the local frame less its mount's,
+// low-passed over height_smoothing_s: a city block is nearly flat, and a code receiver's
+// vertical error (about 3 m) is larger than any slope the robot sees in a minute. A
+// carrier-phase (RTK) fix's height is good to centimetres and is followed within
+// rtk_height_smoothing_s, so that kerbs and slopes come out where they are.
 #pragma once
 
 #include <array>
 #include <cstddef>
 #include <cstdint>
 #include <span>
+
+#include <Eigen/Core>
 
 #include "blockmap/core/arena.hpp"
 #include "blockmap/localize/localize_config.hpp"
@@ -34,10 +42,17 @@ struct Pose3 {
   double yaw_rad = 0.0;
 };
 
+// The rotation of the robot frame into the local frame at an attitude: Rz(yaw) Ry(pitch)
+// Rx(roll), positive pitch nose down (the RMP's sign).
+[[nodiscard]] Eigen::Matrix3d attitude_rotation(double roll_rad, double pitch_rad,
+                                                double yaw_rad) noexcept;
+
 struct LocalizerConfig {
   LocalizeConfig filter;
-  double antenna_height_m = 1.3;  // the GPS antenna above the robot frame's origin
+  // The GPS antenna in the robot frame (x forward, y left, z up), metres.
+  Eigen::Vector3d antenna_m = Eigen::Vector3d(0.0, 0.0, 1.3);
   double height_smoothing_s = 120.0;
+  double rtk_height_smoothing_s = 1.0;
   // A fore/aft increment faster than this is the base resetting its integrators (power
   // cycle, a reset command), not motion: it is skipped and counted.
   double max_speed_mps = 10.0;
@@ -47,8 +62,18 @@ struct LocalizerConfig {
   // farther than the snap limits from the estimate moves to it at once (the start, a
   // recovery).
   double map_pose_smoothing_s = 5.0;
+  // While carrier-phase (RTK) fixes hold the estimate to centimetres, its steps at a fix are
+  // centimetres too, and the map pose closes its gap over this instead.
+  double rtk_map_pose_smoothing_s = 0.5;
   double map_pose_snap_m = 3.0;
-  double map_pose_snap_rad = 0.35;  // 20 deg
+  // With carrier-phase fixes, the map poses start once the particles' headings agree this
+  // closely (ParticleFilter::heading_spread_rad): before, a robot that has not yet moved far
+  // enough for its fixes to show its heading would draw its scans turned anywhere, and a
+  // centimetre map keeps the wall they make. Code fixes take several seconds to show the
+  // heading and put the map metres off anyway: their map starts at once, as it did
+  // (docs/localize.md, RTK receivers).
+  double map_pose_start_heading_spread_rad = 0.26;  // 15 deg
+  double map_pose_snap_rad = 0.35;                  // 20 deg
   // Map poses kept, one per base sample: how far back map_pose_at() reaches (10 s at 100 Hz).
   std::size_t map_pose_capacity = 1024;
   // 0: the map pose is drawn toward the estimate as it is now. L > 0: the map pose runs L
@@ -81,8 +106,16 @@ class Localizer {
 
   // One status group of the base: its odometry and IMU samples (the same stamp).
   void on_base(const msg::OdometrySample& odometry, const msg::ImuSample& imu) noexcept;
-  // A GPS fix in the local frame; up_m is the antenna's height in that frame.
+  // A GPS fix of the antenna in the local frame; up_m is the antenna's height in that frame.
   GpsOutcome on_fix(const GpsObservation& fix, double up_m) noexcept;
+  // The last fix on_fix() had, moved from the antenna to the robot frame's origin by the
+  // filter's heading after it.
+  [[nodiscard]] const GpsObservation& last_robot_fix() const noexcept { return robot_fix_; }
+  // Whether carrier-phase fixes hold the pose at stamp_ns: the filter used one at most
+  // kCarrierPhaseHoldNs before it and no code fix since. The receiver drops to code fixes
+  // under tall buildings; then the scan matcher holds the map rigid again.
+  static constexpr TimestampNs kCarrierPhaseHoldNs = 2 * kNanosecondsPerSecond;
+  [[nodiscard]] bool carrier_phase_holds(TimestampNs stamp_ns) const noexcept;
 
   // As the filter's: poses that left the window (each once), the rest of the window, the
   // pose at a time inside it; with height, pitch and roll.
@@ -141,6 +174,7 @@ class Localizer {
   void pull_map_pose(const Pose2& target, const BaseMotion& motion) noexcept;
   void keep_map_pose(const BaseMotion& motion) noexcept;
   [[nodiscard]] Attitude attitude_at(TimestampNs stamp_ns) const noexcept;
+  void follow_height(const GpsObservation& fix, double height_m) noexcept;
   [[nodiscard]] Pose3 completed(const Pose2& pose) const noexcept;
 
   LocalizerConfig config_;
@@ -151,6 +185,10 @@ class Localizer {
   double last_fore_aft_m_ = 0.0;
   double roll_rad_ = 0.0;
   double pitch_rad_ = 0.0;
+  GpsObservation robot_fix_;
+  bool have_carrier_phase_fix_ = false;
+  TimestampNs last_carrier_phase_fix_ns_ = 0;
+  TimestampNs last_code_fix_ns_ = 0;
   bool have_height_ = false;
   double height_m_ = 0.0;
   TimestampNs last_height_ns_ = 0;

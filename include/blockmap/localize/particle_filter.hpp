@@ -48,13 +48,31 @@ struct Pose2 {
   double yaw_rad = 0.0;
 };
 
-// A GPS fix already in the local frame (hal converts geodetic coordinates).
+// What the receiver corrected its fix with (NMEA GGA's quality): the fix's error follows.
+enum class GpsCorrection : std::uint8_t {
+  kNone,          // a code fix alone: metres, user_range_error_m x HDOP
+  kDifferential,  // DGPS or SBAS corrections: better than the HDOP says (dgps_sigma_factor)
+  kRtkFloat,      // carrier phase, ambiguities not fixed: decimetres (rtk_float_sigma_m)
+  kRtkFixed,      // carrier phase, ambiguities fixed: centimetres (rtk_fixed_sigma_m)
+};
+
+[[nodiscard]] constexpr bool carrier_phase(GpsCorrection correction) noexcept {
+  return correction == GpsCorrection::kRtkFloat || correction == GpsCorrection::kRtkFixed;
+}
+
+// A GPS fix already in the local frame (hal converts geodetic coordinates): where the antenna
+// was. The antenna's horizontal offset from the robot frame's origin, ahead along the robot's
+// heading and to its left (its mount turned by the pitch and roll of the moment), makes each
+// particle expect the fix from its own position and heading: a heading not yet known turns
+// the offset differently for each particle.
 struct GpsObservation {
   TimestampNs stamp_ns = 0;  // the fix's epoch on the run's clock
   double east_m = 0.0;
   double north_m = 0.0;
   double hdop = 1.0;
-  bool differential = false;  // DGPS or RTK
+  GpsCorrection correction = GpsCorrection::kNone;
+  double antenna_ahead_m = 0.0;
+  double antenna_left_m = 0.0;
 };
 
 enum class GpsOutcome : std::uint8_t {
@@ -93,6 +111,10 @@ class ParticleFilter {
   // The spread of the particles' positions (the square root of the covariance's trace), as
   // of the last batch of odometry applied to them (at most a history step old).
   [[nodiscard]] double position_spread_m() const noexcept;
+  // The spread of the particles' headings: the circular standard deviation, sqrt(-2 ln R)
+  // for the mean resultant length R of their weighted unit vectors (infinite for headings
+  // spread evenly round, as at the start before the robot has moved).
+  [[nodiscard]] double heading_spread_rad() const noexcept;
   // The mean distance scale and yaw-rate bias the particles carry.
   [[nodiscard]] double mean_distance_scale() const noexcept;
   [[nodiscard]] double mean_yaw_rate_bias_radps() const noexcept;
@@ -132,9 +154,19 @@ class ParticleFilter {
     double spread_m = 0.0;
   };
   [[nodiscard]] PositionStats position_stats() const noexcept;
-  // Of where the particles expect the next fix: position plus slow GPS error.
-  [[nodiscard]] PositionStats expected_fix_stats() const noexcept;
-  [[nodiscard]] PositionStats weighted_stats(bool with_gps_error) const noexcept;
+  // Of where the particles expect `fix`: the antenna's position plus their estimate of the
+  // receiver's error.
+  [[nodiscard]] PositionStats expected_fix_stats(const GpsObservation& fix) const noexcept;
+  // Particle i's antenna (x, y) at `fix`.
+  [[nodiscard]] double antenna_x_m(std::size_t i, const GpsObservation& fix) const noexcept {
+    return x_m_[i] + cos_yaw_[i] * fix.antenna_ahead_m - sin_yaw_[i] * fix.antenna_left_m;
+  }
+  [[nodiscard]] double antenna_y_m(std::size_t i, const GpsObservation& fix) const noexcept {
+    return y_m_[i] + sin_yaw_[i] * fix.antenna_ahead_m + cos_yaw_[i] * fix.antenna_left_m;
+  }
+  // The weighted mean and spread of a position per particle.
+  template <typename X, typename Y>
+  [[nodiscard]] PositionStats weighted_stats(const X& x_at, const Y& y_at) const noexcept;
   // A fix's error variances per axis, in its three parts.
   struct FixError {
     double slow_variance_m2 = 0.0;
@@ -155,11 +187,29 @@ class ParticleFilter {
   void apply_motion() noexcept;
   void start_at(const GpsObservation& fix, double sigma_m, bool keep_heading) noexcept;
   [[nodiscard]] double fix_sigma_m(const GpsObservation& fix) const noexcept;
+  // How far around a fix the particles start: initial_position_sigma_m, or three of the fix's
+  // sigmas when that is less (a centimetre fix with particles spread over metres would leave
+  // none of them near it).
+  [[nodiscard]] double start_spread_m(const GpsObservation& fix) const noexcept;
   [[nodiscard]] FixError fix_error(const GpsObservation& fix) const noexcept;
   void advance_gps_error(double dt_s, const FixError& error) noexcept;
   [[nodiscard]] double fix_innovation_variance_m2(const FixError& error) const noexcept;
   [[nodiscard]] bool is_outlier(const GpsObservation& fix, const FixError& error) const noexcept;
   void weigh(const GpsObservation& fix, const FixError& error) noexcept;
+  // A carrier-phase fix is centimetres, about the particles' own spread after a quarter
+  // second of odometry: weighed as it is, nearly all the weight goes to a few, and their
+  // headings, scales and gyroscope biases are all the filter has left (a wrong bias then
+  // turns the heading degrees off while the fixes hold the position). So its likelihood is
+  // raised to the power (the sharpness, at most 1) that leaves rtk_min_effective_fraction of
+  // the particles effective: each fix pulls as hard as the particles can follow, and the
+  // next fixes give what it did not take.
+  // After a resampling on a carrier-phase fix: each particle's heading and gyroscope bias
+  // jittered (rtk_*_roughening). A centimetre fix leaves few particles with weight, and their
+  // headings and biases are all the filter keeps; the random walks of the action model are
+  // too slow to find the truth again, so a wrong bias turns the heading degrees off while the
+  // fixes hold the position. Jittered, the particles that drift least are kept at the next
+  // fix, and the heading and bias follow.
+  void roughen() noexcept;
   void normalize_weights() noexcept;
   [[nodiscard]] double effective_particles() const noexcept;
   void resample() noexcept;

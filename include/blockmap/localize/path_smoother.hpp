@@ -17,7 +17,9 @@
 //    and with the distance and time for the turn;
 //  - the receiver's slow error: a first-order Gauss-Markov process (stationary sigma
 //    bias_sigma_m, time constant bias_time_s), the model the filter and the simulator use;
-//  - fixes: position plus slow error equals the fix, with the fast part's variance.
+//  - fixes: position plus slow error equals the fix, with the fast part's variance. A
+//    carrier-phase (RTK) fix has no slow error of the receiver's kind (the base station's
+//    corrections take it out): position equals the fix, to centimetres.
 //  - ties between passes: a wall seen on one pass and again minutes later is one wall, so
 //    the later look moved by its keyframe's correction lies on the earlier look moved by
 //    its own (offset along the normal, and the turn). The caller pairs the looks (tie()).
@@ -63,6 +65,9 @@ struct PathSmootherConfig {
   double bias_sigma_m = 1.2;
   double bias_time_s = 60.0;
   double fix_sigma_m = 6.4;
+  // Carrier-phase fixes, per fix (their errors are correlated over seconds too).
+  double rtk_fixed_sigma_m = 0.05;
+  double rtk_float_sigma_m = 0.5;
   // Gauss-Newton steps per solve(); each starts from the last solution.
   std::uint32_t iterations = 3;
   // Ties between passes: the most kept (when full, the two most alike of the kept and the new
@@ -115,17 +120,18 @@ class PathSmoother {
 
   // The odometry's pose at odometry.stamp_ns (a frame that drifts but never jumps: the scan
   // matcher's matched pose or the filter's dead reckoning), with the GPS fix of that time in
-  // the local frame when there is one (east, north; fix_sigma_scale multiplies the configured
-  // sigmas, an HDOP's worth). A keyframe is made for every fix, and for every
-  // keyframe_spacing_m of motion without one. Times must not go back (refused, counted).
+  // the local frame when there is one (east, north; for a code fix, fix_sigma_scale
+  // multiplies the configured sigma, an HDOP's worth; a carrier-phase fix takes rtk_*_sigma_m
+  // as it is). A keyframe is made for every fix, and for every keyframe_spacing_m of motion
+  // without one. Times must not go back (refused, counted).
   void add(const Pose2& odometry, const std::optional<Eigen::Vector2d>& fix_m,
-           double fix_sigma_scale = 1.0) noexcept {
-    add(odometry, odometry, fix_m, fix_sigma_scale);
+           double fix_sigma_scale = 1.0, GpsCorrection correction = GpsCorrection::kNone) noexcept {
+    add(odometry, odometry, fix_m, fix_sigma_scale, correction);
   }
   // The same, with the pose the caller drew its map with at that time (kept with the
   // keyframe: correction() says how to move what was drawn then).
   void add(const Pose2& odometry, const Pose2& drawn, const std::optional<Eigen::Vector2d>& fix_m,
-           double fix_sigma_scale = 1.0) noexcept;
+           double fix_sigma_scale = 1.0, GpsCorrection correction = GpsCorrection::kNone) noexcept;
 
   // The wall `key` (the caller's name for it) that `earlier` saw is the wall `later` sees,
   // on another pass. A tie of the same key whose later look is of this pass (less than
@@ -160,13 +166,19 @@ class PathSmoother {
   [[nodiscard]] const PathSmootherCounters& counters() const noexcept { return counters_; }
 
  private:
+  // Fixes merged into a keyframe: their weighted mean and the sum of their 1 / sigma^2.
+  struct FixMean {
+    double east_m = 0.0;
+    double north_m = 0.0;
+    double weight = 0.0;  // 0: none
+    void merge(double east, double north, double more_weight) noexcept;
+  };
   struct Keyframe {
-    Pose2 odometry;           // as given
-    Pose2 drawn;              // as given
-    double fix_east_m = 0.0;  // the fixes merged into it, weighted mean
-    double fix_north_m = 0.0;
-    double fix_weight = 0.0;  // sum of 1 / sigma^2 of its fixes (0: none)
-    double state[5] = {};     // x, y, yaw, bx, by as solved
+    Pose2 odometry;         // as given
+    Pose2 drawn;            // as given
+    FixMean code_fixes;     // position + slow error = fix
+    FixMean carrier_fixes;  // position = fix (RTK)
+    double state[5] = {};   // x, y, yaw, bx, by as solved
   };
   // The normal equations' blocks at keyframe i: the diagonal, the one coupling it to i + 1,
   // and the gradient; the band's factors overwrite the first two (L with S = L L', and
@@ -202,6 +214,7 @@ class PathSmoother {
   void accumulate_motion(std::size_t i) noexcept;
   void accumulate_receiver(std::size_t i) noexcept;
   void accumulate_fix(std::size_t i) noexcept;
+  void accumulate_fix(std::size_t i, const FixMean& fixes, bool slow_error) noexcept;
   // How alike two ties are: the longer of the times between their earlier looks and between
   // their later looks (ties that close hold the same two stretches of path to each other), or
   // the most there is when their walls are not parallel (a corner's two walls hold the path

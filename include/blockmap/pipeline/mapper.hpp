@@ -207,6 +207,8 @@ struct MapperCounters {
   std::uint64_t rigid_path_fixes_dropped = 0;    // fixes that waited for a matched scan too long
   std::uint64_t rigid_path_ties_other_side = 0;  // a wall paired with one seen from behind
   std::uint64_t planes_moved = 0;                // final planes the rigid path moved
+  // Times scan matching gave way to carrier-phase fixes (Localizer::carrier_phase_holds).
+  std::uint64_t scan_matching_pauses = 0;
 };
 
 // A plane-list update: what changed since the previous one, at `stamp_ns` (scan time).
@@ -404,6 +406,7 @@ class Mapper {
   std::size_t correction_next_ = 0;
   std::size_t correction_count_ = 0;
   TimestampNs last_matched_scan_ns_ = 0;
+  bool matching_paused_ = false;  // carrier-phase fixes hold the poses; the grid is stale
   localize::PathSmoother path_;
   bool path_on_ = false;
   // Fixes wait here for the first matched scan at or after them (scans are drawn after the

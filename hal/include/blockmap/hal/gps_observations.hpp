@@ -1,6 +1,6 @@
 // GPS fixes as the localizer takes them: NMEA's UTC of day on the run's clock, the geodetic
 // position in the local ENU frame (anchored at a configured origin or the first good fix),
-// and whether the receiver had a differential correction. Shared by `run` and `replay`
+// and what the receiver corrected it with (GGA's quality). Shared by `run` and `replay`
 // and by the simulated robot.
 #pragma once
 
@@ -19,6 +19,9 @@ namespace blockmap::hal {
 // The fix's UTC on the log's clock. With a date (RMC), exact; without one (GGA alone), the day
 // that puts it nearest to `near_ns` (the odometry's time), which survives midnight.
 [[nodiscard]] TimestampNs fix_stamp_ns(const msg::GpsFix& fix, TimestampNs near_ns);
+
+// What GGA's quality says the fix was corrected with: DGPS, RTK float or fixed, or nothing.
+[[nodiscard]] localize::GpsCorrection correction_of(msg::GpsFixQuality quality);
 
 // The fix's ellipsoidal position (NMEA gives the height above the geoid and its separation).
 [[nodiscard]] GeodeticPoint fix_point(const msg::GpsFix& fix);

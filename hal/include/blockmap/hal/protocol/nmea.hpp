@@ -156,7 +156,9 @@ class Decoder {
 // to the front of `out` and returns its length, or 0 when `out` is too small
 // (kMaxSentenceBytes always suffices) or `talker` is not two characters. Fields the fix does
 // not have are left empty, as receivers leave them. Latitude and longitude carry five decimals
-// of minutes (1.9 cm), time two decimals of seconds, as common receivers send them.
+// of minutes (1.9 cm) and the altitude one of a metre, time two decimals of seconds, as common
+// receivers send them; a carrier-phase fix (RTK fixed or float) carries seven decimals of
+// minutes (0.2 mm) and a millimetre of altitude, as RTK receivers send theirs.
 
 // GGA: time, position, quality, satellites, HDOP, altitude and geoid separation.
 [[nodiscard]] std::size_t encode_gga(const msg::GpsFix& fix, std::string_view talker,

@@ -16,6 +16,7 @@
 
 #include "blockmap/hal/protocol/segway_rmp.hpp"
 #include "blockmap/hal/protocol/sick_lms2xx.hpp"
+#include "blockmap/msg/gps_fix.hpp"
 
 namespace blockmap::hal::sim {
 
@@ -96,6 +97,9 @@ struct GpsSpec {
   double multipath_correlation_s = 2.0;
   double latency_s = 0.05;  // from the epoch to the first byte of its sentences
   double hdop_open_sky = 0.9;
+  // What GGA says the fixes were corrected with: a code receiver's kGps, or a carrier-phase
+  // (RTK) receiver's kRtkFixed, whose error budget above is then centimetres.
+  msg::GpsFixQuality fix_quality = msg::GpsFixQuality::kGps;
   int satellites = 10;  // the constellation above the site
   double elevation_mask_deg = 10.0;
   double read_interval_s = 0.01;
