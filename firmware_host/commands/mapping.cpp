@@ -167,10 +167,11 @@ void MappingSession::report(std::ostream& err, double data_s) const {
     std::snprintf(
         text, sizeof text,
         "scan matching: %llu scans, %llu matched, %llu with too few points, %llu off "
-        "the map, %llu stepping too far; %llu restarts\n",
+        "the map, %llu stepping too far; %llu restarts; %llu times paused for RTK fixes\n",
         static_cast<unsigned long long>(m.scans), static_cast<unsigned long long>(m.matched),
         static_cast<unsigned long long>(m.few_points), static_cast<unsigned long long>(m.off_map),
-        static_cast<unsigned long long>(m.too_far), static_cast<unsigned long long>(m.resets));
+        static_cast<unsigned long long>(m.too_far), static_cast<unsigned long long>(m.resets),
+        static_cast<unsigned long long>(c.scan_matching_pauses));
     err << text;
   }
   if (mapper_.rigid_path_on()) {

@@ -120,16 +120,10 @@ GpsOutcome Localizer::on_fix(const GpsObservation& fix, double up_m) noexcept {
   // particle's heading.
   const Eigen::Vector3d antenna_m =
       attitude_rotation(roll_rad_, pitch_rad_, 0.0) * config_.antenna_m;
-  GpsObservation at_antenna = fix;
-  at_antenna.antenna_ahead_m = antenna_m.x();
-  at_antenna.antenna_left_m = antenna_m.y();
-  const GpsOutcome outcome = filter_.update(at_antenna);
-  // The fix moved to the robot frame's origin by the filter's heading after it, for the
-  // whole run's path (which takes fixes of the robot frame).
-  const double yaw_rad = filter_.started() ? filter_.estimate().yaw_rad : 0.0;
-  robot_fix_ = fix;
-  robot_fix_.east_m -= std::cos(yaw_rad) * antenna_m.x() - std::sin(yaw_rad) * antenna_m.y();
-  robot_fix_.north_m -= std::sin(yaw_rad) * antenna_m.x() + std::cos(yaw_rad) * antenna_m.y();
+  antenna_fix_ = fix;
+  antenna_fix_.antenna_ahead_m = antenna_m.x();
+  antenna_fix_.antenna_left_m = antenna_m.y();
+  const GpsOutcome outcome = filter_.update(antenna_fix_);
   if (outcome != GpsOutcome::kRejected) {
     follow_height(fix, up_m - antenna_m.z());
     if (carrier_phase(fix.correction)) {
@@ -145,6 +139,19 @@ GpsOutcome Localizer::on_fix(const GpsObservation& fix, double up_m) noexcept {
                   BaseMotion{last_base_ns_, 0.0, 0.0, height_m_, roll_rad_, pitch_rad_});
   }
   return outcome;
+}
+
+GpsObservation Localizer::last_robot_fix() const noexcept {
+  // For the whole run's path, which takes fixes of the robot frame.
+  const double yaw_rad = filter_.started() ? filter_.estimate().yaw_rad : 0.0;
+  const double c = std::cos(yaw_rad);
+  const double s = std::sin(yaw_rad);
+  GpsObservation robot = antenna_fix_;
+  robot.east_m -= c * antenna_fix_.antenna_ahead_m - s * antenna_fix_.antenna_left_m;
+  robot.north_m -= s * antenna_fix_.antenna_ahead_m + c * antenna_fix_.antenna_left_m;
+  robot.antenna_ahead_m = 0.0;
+  robot.antenna_left_m = 0.0;
+  return robot;
 }
 
 bool Localizer::carrier_phase_holds(TimestampNs stamp_ns) const noexcept {

@@ -66,6 +66,7 @@ struct LocalizerConfig {
   // centimetres too, and the map pose closes its gap over this instead.
   double rtk_map_pose_smoothing_s = 0.5;
   double map_pose_snap_m = 3.0;
+  double map_pose_snap_rad = 0.35;  // 20 deg
   // With carrier-phase fixes, the map poses start once the particles' headings agree this
   // closely (ParticleFilter::heading_spread_rad): before, a robot that has not yet moved far
   // enough for its fixes to show its heading would draw its scans turned anywhere, and a
@@ -73,7 +74,6 @@ struct LocalizerConfig {
   // heading and put the map metres off anyway: their map starts at once, as it did
   // (docs/localize.md, RTK receivers).
   double map_pose_start_heading_spread_rad = 0.26;  // 15 deg
-  double map_pose_snap_rad = 0.35;                  // 20 deg
   // Map poses kept, one per base sample: how far back map_pose_at() reaches (10 s at 100 Hz).
   std::size_t map_pose_capacity = 1024;
   // 0: the map pose is drawn toward the estimate as it is now. L > 0: the map pose runs L
@@ -109,8 +109,8 @@ class Localizer {
   // A GPS fix of the antenna in the local frame; up_m is the antenna's height in that frame.
   GpsOutcome on_fix(const GpsObservation& fix, double up_m) noexcept;
   // The last fix on_fix() had, moved from the antenna to the robot frame's origin by the
-  // filter's heading after it.
-  [[nodiscard]] const GpsObservation& last_robot_fix() const noexcept { return robot_fix_; }
+  // filter's heading now (right after on_fix(), the heading after that fix).
+  [[nodiscard]] GpsObservation last_robot_fix() const noexcept;
   // Whether carrier-phase fixes hold the pose at stamp_ns: the filter used one at most
   // kCarrierPhaseHoldNs before it and no code fix since. The receiver drops to code fixes
   // under tall buildings; then the scan matcher holds the map rigid again.
@@ -185,7 +185,7 @@ class Localizer {
   double last_fore_aft_m_ = 0.0;
   double roll_rad_ = 0.0;
   double pitch_rad_ = 0.0;
-  GpsObservation robot_fix_;
+  GpsObservation antenna_fix_;  // the last fix, with the mount as the filter took it
   bool have_carrier_phase_fix_ = false;
   TimestampNs last_carrier_phase_fix_ns_ = 0;
   TimestampNs last_code_fix_ns_ = 0;

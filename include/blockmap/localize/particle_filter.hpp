@@ -196,13 +196,6 @@ class ParticleFilter {
   [[nodiscard]] double fix_innovation_variance_m2(const FixError& error) const noexcept;
   [[nodiscard]] bool is_outlier(const GpsObservation& fix, const FixError& error) const noexcept;
   void weigh(const GpsObservation& fix, const FixError& error) noexcept;
-  // A carrier-phase fix is centimetres, about the particles' own spread after a quarter
-  // second of odometry: weighed as it is, nearly all the weight goes to a few, and their
-  // headings, scales and gyroscope biases are all the filter has left (a wrong bias then
-  // turns the heading degrees off while the fixes hold the position). So its likelihood is
-  // raised to the power (the sharpness, at most 1) that leaves rtk_min_effective_fraction of
-  // the particles effective: each fix pulls as hard as the particles can follow, and the
-  // next fixes give what it did not take.
   // After a resampling on a carrier-phase fix: each particle's heading and gyroscope bias
   // jittered (rtk_*_roughening). A centimetre fix leaves few particles with weight, and their
   // headings and biases are all the filter keeps; the random walks of the action model are
