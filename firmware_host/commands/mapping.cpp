@@ -142,6 +142,15 @@ void MappingSession::report(std::ostream& err, double data_s) const {
       mapper_.window().capacity(), static_cast<unsigned long long>(outputs_.updates()),
       static_cast<unsigned long long>(outputs_.binary_bytes()), outputs_.dir().c_str());
   err << text;
+  if (w.tiles_left_early > 0) {
+    std::snprintf(text, sizeof text,
+                  "window: %llu tiles beyond its core of %u left early for room, %llu points "
+                  "dropped in them\n",
+                  static_cast<unsigned long long>(w.tiles_left_early),
+                  mapper_.window().config().core_tiles_across,
+                  static_cast<unsigned long long>(w.points_in_closed_tiles));
+    err << text;
+  }
   const std::uint64_t lost = c.scans_refused_full + c.scans_too_many_beams + c.scans_without_pose +
                              c.messages_late + c.reorder_forced + r.refused_full +
                              r.finalized_early + r.final_dropped;

@@ -18,6 +18,12 @@ pipeline::MapperConfig parse_window_config(std::string_view text, std::string_vi
     }
     c.window.tiles_across = static_cast<std::uint32_t>(tiles);
     c.window.max_samples = t.capacity_or("max_samples", c.window.max_samples);
+    const std::int64_t core = t.integer_or("core_tiles_across", c.window.core_tiles_across);
+    if (core < 0 || core > tiles || (core != 0 && core % 2 == 0)) {
+      t.fail("core_tiles_across", "must be 0 (every tile) or odd and at most tiles_across");
+    }
+    c.window.core_tiles_across = static_cast<std::uint32_t>(core);
+    c.window.reserve_samples = t.capacity_or("reserve_samples", c.window.reserve_samples);
     t.finish();
     // The tile must hold whole 4-voxel blocks of the detector's samples ([planes] sample_size_m).
     map::VoxelWindowConfig window = c.window;

@@ -50,6 +50,13 @@ std::string validate(const VoxelWindowConfig& config) {
   if (config.max_samples < 64 || config.max_samples >= (std::size_t{1} << 31)) {
     return "window: max_samples must be from 64 to 2^31";
   }
+  if (config.core_tiles_across != 0 &&
+      (config.core_tiles_across % 2 == 0 || config.core_tiles_across > config.tiles_across)) {
+    return "window: core_tiles_across must be 0 (every tile) or odd and at most tiles_across";
+  }
+  if (config.core_tiles_across != 0 && config.reserve_samples >= config.max_samples) {
+    return "window: reserve_samples must be less than max_samples";
+  }
   return {};
 }
 
@@ -61,6 +68,10 @@ void VoxelWindow::init(Arena& arena, const VoxelWindowConfig& config) {
   inverse_voxel_m_ = static_cast<float>(1.0 / config.voxel_size_m);
   voxels_per_tile_ = whole(config.tile_size_m / config.voxel_size_m);
   half_tiles_ = static_cast<std::int64_t>(config.tiles_across / 2);
+  core_half_tiles_ = config.core_tiles_across == 0
+                         ? half_tiles_
+                         : static_cast<std::int64_t>(config.core_tiles_across / 2);
+  batch_ = 0;
   slots_ = arena.allocate_array<TileSlot>(std::size_t{config.tiles_across} * config.tiles_across,
                                           "window.tiles");
   samples_ = arena.allocate_array<planes::VoxelSums>(config.max_samples, "window.samples");
@@ -103,6 +114,11 @@ bool VoxelWindow::tile_inside(std::int64_t tile_x, std::int64_t tile_y) const no
          std::abs(tile_y - centre_tile_y_) <= half_tiles_;
 }
 
+bool VoxelWindow::tile_in_core(std::int64_t tile_x, std::int64_t tile_y) const noexcept {
+  return placed_ && std::abs(tile_x - centre_tile_x_) <= core_half_tiles_ &&
+         std::abs(tile_y - centre_tile_y_) <= core_half_tiles_;
+}
+
 Eigen::AlignedBox2d VoxelWindow::tile_bounds_m(std::int64_t tile_x,
                                                std::int64_t tile_y) const noexcept {
   const Eigen::Vector2d low(static_cast<double>(tile_x) * config_.tile_size_m,
@@ -134,7 +150,38 @@ void VoxelWindow::recentre(const Eigen::Vector2d& position_m, EvictionSink& sink
   for (TileSlot& slot : slots_) {
     if (slot.count > 0 && !tile_inside(slot.tile_x, slot.tile_y)) {
       evict(slot, sink);
+    } else if (slot.closed && !tile_inside(slot.tile_x, slot.tile_y)) {
+      slot = TileSlot{};  // a closed tile that left: its slot holds the tile now inside
     }
+    // The robot came near a tile that left early: it maps it again.
+    if (slot.closed && tile_in_core(slot.tile_x, slot.tile_y)) {
+      slot.closed = false;
+    }
+  }
+}
+
+void VoxelWindow::make_room(EvictionSink& sink) noexcept {
+  if (!placed_ || core_half_tiles_ >= half_tiles_) {
+    return;
+  }
+  while (samples_.size() - sample_count_ < config_.reserve_samples) {
+    TileSlot* stalest = nullptr;
+    for (TileSlot& slot : slots_) {
+      if (slot.count > 0 && !tile_in_core(slot.tile_x, slot.tile_y) &&
+          (stalest == nullptr || slot.touched_batch < stalest->touched_batch)) {
+        stalest = &slot;
+      }
+    }
+    if (stalest == nullptr) {
+      return;  // the core alone fills the pool: new voxels are dropped, as without a core
+    }
+    const std::int64_t tile_x = stalest->tile_x;
+    const std::int64_t tile_y = stalest->tile_y;
+    evict(*stalest, sink);
+    stalest->tile_x = tile_x;
+    stalest->tile_y = tile_y;
+    stalest->closed = true;
+    ++counters_.tiles_left_early;
   }
 }
 
@@ -224,10 +271,15 @@ void VoxelWindow::add_point(const Eigen::Vector3f& point_m) noexcept {
     return;
   }
   TileSlot& slot = slots_[slot_of_tile(tile_x, tile_y)];
+  if (slot.closed) {
+    ++counters_.points_in_closed_tiles;
+    return;
+  }
   if (slot.count == 0) {
     slot.tile_x = tile_x;
     slot.tile_y = tile_y;
   }
+  slot.touched_batch = batch_;
   // Neighbouring beams of a scan often land in one voxel: the last one found is kept.
   const planes::CellKey key = planes::pack_cell(x, y, z);
   if (key != last_key_) {
@@ -280,6 +332,7 @@ void VoxelWindow::add_points(std::span<const Eigen::Vector3f> points_m) noexcept
   // points are summed while the fetches arrive (the table is MiBs, read at random: a new
   // voxel was a cache miss, a twentieth of the benning replay).
   constexpr std::size_t kBatch = 32;
+  ++batch_;
   for (std::size_t first = 0; first < points_m.size(); first += kBatch) {
     const std::span<const Eigen::Vector3f> batch =
         points_m.subspan(first, std::min(kBatch, points_m.size() - first));

@@ -528,6 +528,8 @@ void Mapper::project(const QueuedScan& queued, std::span<const std::uint16_t> co
   }
   // The window follows the robot: tiles it leaves behind go to the registry as they leave.
   window_.recentre(Eigen::Vector2d(first.x_m, first.y_m), tile_leaving_);
+  // A window reaching beyond its core keeps room for this scan's new voxels.
+  window_.make_room(tile_leaving_);
   record_laser_position(queued.laser, first);
   if (carves_free_space_[queued.laser]) {
     carve_free_space(queued.laser, first, points_.first(count));

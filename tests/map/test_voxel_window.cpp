@@ -148,6 +148,99 @@ TEST(VoxelWindow, ScrollsWithTheRobotAndHandsOverTheTilesItLeaves) {
   EXPECT_EQ(w.window.counters().peak_samples, 256u);
 }
 
+// `count` points in distinct voxels of tile (tile_x, tile_y) of 3.2 m (16 voxels across).
+std::vector<Eigen::Vector3f> points_in_tile(int tile_x, int tile_y, int count) {
+  std::vector<Eigen::Vector3f> points;
+  points.reserve(static_cast<std::size_t>(count));
+  for (int i = 0; i < count; ++i) {
+    const int column = i % 16;
+    const int row = i / 16;
+    points.emplace_back(
+        3.2f * static_cast<float>(tile_x) + 0.1f + 0.2f * static_cast<float>(column),
+        3.2f * static_cast<float>(tile_y) + 0.1f + 0.2f * static_cast<float>(row), 0.1f);
+  }
+  return points;
+}
+
+// A window of 5 x 5 tiles whose core is the 3 x 3 around the robot: when the pool runs low,
+// the outer tile that points reached least recently leaves, whole, and takes nothing more
+// until the robot comes near it.
+VoxelWindowConfig config_with_core() {
+  VoxelWindowConfig config = small_config();
+  config.tiles_across = 5;
+  config.core_tiles_across = 3;
+  config.reserve_samples = 32;
+  return config;
+}
+
+TEST(VoxelWindow, TilesBeyondTheCoreLeaveEarlyLeastRecentlyTouchedFirst) {
+  Window w(config_with_core());
+  CollectingSink sink;
+  w.window.recentre(Eigen::Vector2d(1.0, 1.0), sink);  // tile (0, 0): the ring is -2..2
+  w.window.add_points(points_in_tile(2, 0, 100));      // east, outer
+  w.window.add_points(points_in_tile(-2, 0, 100));     // west, outer, touched later
+  w.window.add_points(points_in_tile(0, 0, 40));       // the robot's own tile
+  ASSERT_EQ(w.window.size(), 240u);
+  w.window.make_room(sink);  // 16 free of the 32 kept: the east tile leaves
+  ASSERT_EQ(sink.tiles.size(), 1u);
+  EXPECT_NEAR(sink.tiles[0].min().x(), 6.4, 1e-9);
+  EXPECT_EQ(sink.samples, 100u);
+  EXPECT_EQ(w.window.size(), 140u);
+  EXPECT_EQ(w.window.counters().tiles_left_early, 1u);
+  EXPECT_EQ(w.window.counters().tiles_evicted, 1u);
+  w.window.make_room(sink);  // room enough now
+  EXPECT_EQ(sink.tiles.size(), 1u);
+  // The east tile is closed: its points are counted and dropped, the others still taken.
+  w.window.add_points(points_in_tile(2, 0, 5));
+  EXPECT_EQ(w.window.counters().points_in_closed_tiles, 5u);
+  w.window.add_points(points_in_tile(-2, 0, 101));  // one new voxel in the west tile
+  EXPECT_EQ(w.window.size(), 141u);
+  // A step east: the east tile is in the core now and maps again; the west one left the ring.
+  w.window.recentre(Eigen::Vector2d(4.0, 1.0), sink);
+  EXPECT_EQ(sink.samples, 100u + 101u);
+  w.window.add_points(points_in_tile(2, 0, 5));
+  EXPECT_EQ(w.window.counters().points_in_closed_tiles, 5u);
+  EXPECT_EQ(w.window.size(), 40u + 5u);
+}
+
+TEST(VoxelWindow, AClosedTileThatLeavesTheWindowIsOpenWhenItComesBack) {
+  Window w(config_with_core());
+  CollectingSink sink;
+  w.window.recentre(Eigen::Vector2d(1.0, 1.0), sink);
+  w.window.add_points(points_in_tile(2, 0, 230));
+  w.window.make_room(sink);
+  ASSERT_EQ(w.window.counters().tiles_left_early, 1u);
+  // West by one tile: the east tile (2, 0) leaves the ring (-3..1); back: it is open again.
+  w.window.recentre(Eigen::Vector2d(-2.0, 1.0), sink);
+  w.window.recentre(Eigen::Vector2d(1.0, 1.0), sink);
+  w.window.add_points(points_in_tile(2, 0, 10));
+  EXPECT_EQ(w.window.counters().points_in_closed_tiles, 0u);
+  EXPECT_EQ(w.window.size(), 10u);
+}
+
+TEST(VoxelWindow, TheCoreNeverLeavesEarlyAndAWindowWithoutOneNeverDoes) {
+  {
+    Window w(config_with_core());
+    CollectingSink sink;
+    w.window.recentre(Eigen::Vector2d(1.0, 1.0), sink);
+    w.window.add_points(points_in_tile(0, 0, 250));  // the core alone nearly fills the pool
+    w.window.make_room(sink);
+    EXPECT_TRUE(sink.tiles.empty());
+    EXPECT_EQ(w.window.size(), 250u);
+  }
+  {
+    VoxelWindowConfig config = config_with_core();
+    config.core_tiles_across = 0;
+    Window w(config);
+    CollectingSink sink;
+    w.window.recentre(Eigen::Vector2d(1.0, 1.0), sink);
+    w.window.add_points(points_in_tile(2, 0, 250));
+    w.window.make_room(sink);
+    EXPECT_TRUE(sink.tiles.empty());
+    EXPECT_EQ(w.window.counters().tiles_left_early, 0u);
+  }
+}
+
 TEST(VoxelWindow, AValidConfigurationIsOneTheDetectorsBlocksFit) {
   EXPECT_EQ(validate(VoxelWindowConfig{}), "");
   VoxelWindowConfig config;
@@ -158,6 +251,16 @@ TEST(VoxelWindow, AValidConfigurationIsOneTheDetectorsBlocksFit) {
   EXPECT_NE(validate(config), "");
   config = VoxelWindowConfig{};
   config.max_samples = 10;
+  EXPECT_NE(validate(config), "");
+  // A core is odd and inside the window, and keeps less than the pool in reserve.
+  EXPECT_EQ(validate(config_with_core()), "");
+  config = config_with_core();
+  config.core_tiles_across = 4;
+  EXPECT_NE(validate(config), "");
+  config.core_tiles_across = 7;
+  EXPECT_NE(validate(config), "");
+  config = config_with_core();
+  config.reserve_samples = config.max_samples;
   EXPECT_NE(validate(config), "");
 }
 

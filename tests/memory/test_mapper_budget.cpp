@@ -65,6 +65,24 @@ TEST(MapperBudget, MappingAllocatesNothing) {
   EXPECT_EQ(mapper->counters().scans_refused_full, 0u);
 }
 
+// A window reaching beyond its core whose pool is too small for the whole ring: tiles leave
+// early and take no points while closed, all within what init() took.
+TEST(MapperBudget, TilesLeavingEarlyForRoomAllocateNothing) {
+  const testing::RecordedMapperInputs inputs("usc_block", 8.0);
+  ASSERT_TRUE(inputs.started);
+  MapperConfig config = inputs.config;
+  config.window.tiles_across = 11;
+  config.window.core_tiles_across = 3;
+  config.window.max_samples = 8192;
+  config.window.reserve_samples = 1024;
+  config.projection.max_range_m = 60.0;
+  EXPECT_EQ(validate(config), "");
+  Arena arena(Mapper::arena_bytes(config));
+  const auto mapper = map_with_the_arena_sealed(arena, config, inputs);
+  EXPECT_GT(mapper->window().counters().tiles_left_early, 0u);
+  EXPECT_GT(mapper->counters().extractions, 3u);
+}
+
 // With the free-space grid on (the blocks a robot drives around are traced in it): every
 // level beam walks the grid, and every refit of the buildings traces its raster, all in
 // memory taken at init.

@@ -194,10 +194,31 @@ TEST(RunCommand, TheConfigSetsTheWindowAndTheExtractionsAndEveryMistakeNamesItsK
   const std::size_t first = result.err.rfind(' ', at - 1) + 1;
   EXPECT_GE(std::stoi(result.err.substr(first, at - first)), 5) << result.err;
 
+  // The far-reaching window as shipped; and one whose pool is too small for its ring, whose
+  // outer tiles leave early and say so.
+  result = run_cli({"run", "--config",
+                    (fs::path(BLOCKMAP_PROJECT_DIR) / "config" / "far_reach.toml").string(),
+                    "--duration-s", "1", "--out", (out / "far").string()});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  const std::string crowded =
+      config_with("crowded.toml",
+                  "[window]\ntiles_across = 9\ncore_tiles_across = 3\nmax_samples = 4096\n"
+                  "reserve_samples = 512\n[projection]\nmax_range_m = 40.0\n");
+  result = run_cli(
+      {"run", "--config", crowded, "--duration-s", "6", "--out", (out / "crowded").string()});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  EXPECT_NE(result.err.find("left early for room"), std::string::npos) << result.err;
+
   const std::vector<std::pair<std::string, std::string>> mistakes = {
       {"[window]\ntiles_across = 8\n", "window.tiles_across: must be odd"},
       {"[window]\ntile_size_ft = 8\n", "window.tile_size_ft: unknown key"},
       {"[window]\ntile_size_m = 7.0\n", "tile_size_m must be a whole number of 4-voxel blocks"},
+      {"[window]\ncore_tiles_across = 4\n",
+       "window.core_tiles_across: must be 0 (every tile) or odd"},
+      {"[window]\ncore_tiles_across = 9\n",
+       "window.core_tiles_across: must be 0 (every tile) or odd"},
+      {"[window]\ncore_tiles_across = 3\nreserve_samples = 81920\n",
+       "reserve_samples must be less than max_samples"},
       {"[projection]\nmax_range_m = -1.0\n", "projection.max_range_m: must be > 0"},
       {"[projection]\nmin_range_m = 5.0\nmax_range_m = 4.0\n",
        "projection.max_range_m: must be more than min_range_m"},

@@ -10,6 +10,12 @@
 // hold tens of samples, a tile with a tall facade thousands); a tile's samples are a chain
 // through the pool, and a hash table with deletion finds a point's voxel. Nothing allocates
 // after init(); a point that finds the pool full is dropped and counted.
+//
+// A window may reach farther than its pool can hold everywhere: the tiles beyond a core
+// around the robot then leave early when the pool runs low (make_room), those that scans
+// touched least recently first, and take no points until the robot comes near them again.
+// Where the map is sparse it reaches across the whole ring; where it is dense it holds what
+// the core does.
 #pragma once
 
 #include <algorithm>
@@ -37,6 +43,14 @@ struct VoxelWindowConfig {
   std::uint32_t tiles_across = 7;
   // Room for the peaks of the simulated usc_block and benning (docs/mapper.md).
   std::size_t max_samples = 81920;
+  // The tiles around the robot that keep their samples until they leave the window (odd, at
+  // most tiles_across; 0: every tile). When fewer than reserve_samples of the pool are free,
+  // make_room() lets the tiles beyond them leave early, least recently touched first; such a
+  // tile takes no points until it comes within the core or leaves the window.
+  std::uint32_t core_tiles_across = 0;
+  // With a core: the free samples kept for the next scans' new voxels (a scan of 361 beams
+  // makes at most 361), less than max_samples.
+  std::size_t reserve_samples = 4096;
 };
 
 // Empty when usable, otherwise what is wrong.
@@ -47,7 +61,9 @@ struct VoxelWindowCounters {
   std::uint64_t points_outside = 0;       // beyond the window's edge: dropped
   std::uint64_t points_dropped_full = 0;  // a new voxel, and the pool full
   std::uint64_t points_non_finite = 0;
-  std::uint64_t tiles_evicted = 0;
+  std::uint64_t tiles_evicted = 0;           // every tile that left, early ones included
+  std::uint64_t tiles_left_early = 0;        // beyond the core, for room (make_room)
+  std::uint64_t points_in_closed_tiles = 0;  // in a tile that left early: dropped
   std::uint64_t samples_evicted = 0;
   std::size_t peak_samples = 0;
 };
@@ -78,6 +94,12 @@ class VoxelWindow {
   // Centres the window on the tile holding position_m. Tiles that fall out of it are handed to
   // `sink` and forgotten; the first call only places the window. Cost: the evicted samples.
   void recentre(const Eigen::Vector2d& position_m, EvictionSink& sink) noexcept;
+  // While fewer than reserve_samples are free, the tile beyond the core that points reached
+  // least recently (the first such slot on a tie) leaves, handed to `sink`, and is closed:
+  // its points are dropped and counted until it comes within the core (recentre() opens it)
+  // or leaves the window. Nothing without a core smaller than the window. Cost: a pass over
+  // the tile slots per tile that leaves, and the samples that leave.
+  void make_room(EvictionSink& sink) noexcept;
   [[nodiscard]] bool placed() const noexcept { return placed_; }
   // The window's square in the local frame (empty before the first recentre()).
   [[nodiscard]] Eigen::AlignedBox2d bounds_m() const noexcept;
@@ -139,6 +161,8 @@ class VoxelWindow {
     std::int64_t tile_y = 0;
     std::uint32_t first = kNone;  // its samples' chain through the pool
     std::uint32_t count = 0;
+    std::uint64_t touched_batch = 0;  // the add_points() call that last reached it
+    bool closed = false;              // left early (make_room): takes no points
   };
   struct TableSlot {
     planes::CellKey key = planes::kNoCell;
@@ -148,6 +172,7 @@ class VoxelWindow {
   [[nodiscard]] std::int64_t tile_of_voxel(std::int64_t voxel) const noexcept;
   [[nodiscard]] std::size_t slot_of_tile(std::int64_t tile_x, std::int64_t tile_y) const noexcept;
   [[nodiscard]] bool tile_inside(std::int64_t tile_x, std::int64_t tile_y) const noexcept;
+  [[nodiscard]] bool tile_in_core(std::int64_t tile_x, std::int64_t tile_y) const noexcept;
   [[nodiscard]] Eigen::AlignedBox2d tile_bounds_m(std::int64_t tile_x,
                                                   std::int64_t tile_y) const noexcept;
   // The sample of `key` (in tile slot `slot`), created when new; kNone when the pool is full.
@@ -160,6 +185,8 @@ class VoxelWindow {
   float inverse_voxel_m_ = 5.0f;
   std::int64_t voxels_per_tile_ = 40;
   std::int64_t half_tiles_ = 5;
+  std::int64_t core_half_tiles_ = 5;
+  std::uint64_t batch_ = 0;  // add_points() calls so far
   bool placed_ = false;
   std::int64_t centre_tile_x_ = 0;
   std::int64_t centre_tile_y_ = 0;
