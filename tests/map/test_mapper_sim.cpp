@@ -598,7 +598,10 @@ TEST(MapperSim, BenningWithTruePosesAndAFarReachingWindowMeetsThePlanesIssue) {
 // usc_block's walls fill more than the pool holds of an 11-tile window: its outer tiles leave
 // early and the block's faces are found as with the default window, nothing dropped for room.
 TEST(MapperSim, UscBlockWithAFarReachingWindowLetsItsOuterTilesLeaveEarly) {
-  BLOCKMAP_LONG_TEST();
+#if defined(BLOCKMAP_QUICK_WORLDS)
+  GTEST_SKIP() << "the pool fills over the whole path, which the optimized tree drives (the "
+                  "memory tier lets tiles leave early in every tree)";
+#endif
   const MapperRun run = map_with_far_reach("usc_block");
   expect_planes_issue_accuracy(run, score(run, "usc_block, true poses, far-reaching window"), 0.95);
   EXPECT_GT(run.tiles_left_early, 0u);
