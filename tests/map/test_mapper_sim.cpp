@@ -608,6 +608,47 @@ TEST(MapperSim, UscBlockWithAFarReachingWindowLetsItsOuterTilesLeaveEarly) {
   EXPECT_EQ(run.points_dropped_full, 0u);
 }
 
+// config/far_reach_rtk.toml: with an RTK receiver the filter's poses find benning's far walls
+// too when the scans are drawn 5 s late, with the smoothed path, whose heading is twice as
+// good as the live one (docs/mapper.md, Accuracy; DISABLED_TheTableOfBenningsReachOverSeeds).
+TEST(MapperSim, BenningWithAnRtkReceiverAndAFarReachingWindowMeetsThePlanesIssue) {
+#if defined(BLOCKMAP_QUICK_WORLDS)
+  GTEST_SKIP() << "the optimized host trees drive benning through the mapper";
+#endif
+  const map::VoxelWindowConfig window = far_reaching_window();
+  const MapperRun run = map_world({.world = "benning",
+                                   .robot = "paper_rmp_rtk",
+                                   .pose_lag_s = 5.0,
+                                   .window = &window,
+                                   .max_range_m = 60.0});
+  expect_planes_issue_accuracy(run, score(run, "benning, RTK receiver, far-reaching window"), 0.95);
+  EXPECT_EQ(run.points_dropped_full, 0u);
+}
+
+// docs/mapper.md's table of benning with the RTK receiver over the simulation's seeds 1-6: the
+// default window, the far-reaching one, and the far-reaching one with scans drawn 5 s late.
+TEST(MapperSim, DISABLED_TheTableOfBenningsReachOverSeeds) {
+  const map::VoxelWindowConfig window = far_reaching_window();
+  for (std::uint64_t seed = 1; seed <= 6; ++seed) {
+    const std::string label = "seed " + std::to_string(seed);
+    score(map_world({.world = "benning", .robot = "paper_rmp_rtk", .seed = seed}),
+          (label + ", default window").c_str());
+    score(map_world({.world = "benning",
+                     .robot = "paper_rmp_rtk",
+                     .seed = seed,
+                     .window = &window,
+                     .max_range_m = 60.0}),
+          (label + ", far-reaching window").c_str());
+    score(map_world({.world = "benning",
+                     .robot = "paper_rmp_rtk",
+                     .pose_lag_s = 5.0,
+                     .seed = seed,
+                     .window = &window,
+                     .max_range_m = 60.0}),
+          (label + ", far-reaching window, 5 s late").c_str());
+  }
+}
+
 // With the particle filter's poses the stream holds together; the accuracy against truth is
 // printed, and docs/mapper.md says how far it is from the true poses' and why. Scans drawn
 // with the smooth map poses (Localizer::map_pose_at) keep each wall in few pieces: 21

@@ -196,10 +196,12 @@ TEST(RunCommand, TheConfigSetsTheWindowAndTheExtractionsAndEveryMistakeNamesItsK
 
   // The far-reaching window as shipped; and one whose pool is too small for its ring, whose
   // outer tiles leave early and say so.
-  result = run_cli({"run", "--config",
-                    (fs::path(BLOCKMAP_PROJECT_DIR) / "config" / "far_reach.toml").string(),
-                    "--duration-s", "1", "--out", (out / "far").string()});
-  ASSERT_EQ(result.status, kExitOk) << result.err;
+  for (const char* shipped : {"far_reach.toml", "far_reach_rtk.toml"}) {
+    result =
+        run_cli({"run", "--config", (fs::path(BLOCKMAP_PROJECT_DIR) / "config" / shipped).string(),
+                 "--duration-s", "1", "--out", (out / "far").string()});
+    ASSERT_EQ(result.status, kExitOk) << shipped << ": " << result.err;
+  }
   const std::string crowded =
       config_with("crowded.toml",
                   "[window]\ntiles_across = 9\ncore_tiles_across = 3\nmax_samples = 4096\n"
