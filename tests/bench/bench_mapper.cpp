@@ -8,8 +8,10 @@
 //                               covers it); step_max_ms is the longest, an extraction
 //   extract_ms       mean time of one plane extraction (detect + registry): a scan's points
 //                    reach the plane list at the next extraction, at most extract_every_s on
-// Arguments: window tiles across (5, 7, 9), the pose source (0 filter, 1 true poses), and 1 to
-// run without the rigid path (the default solves it with the filter's poses).
+// Arguments: window tiles across (5, 7, 9, 11), the pose source (0 filter, 1 true poses), 1 to
+// run without the rigid path (the default solves it with the filter's poses), and 1 for
+// config/far_reach.toml's window: a core of 7 tiles whose ring beyond leaves early when the
+// pool runs low, and ranges to 60 m.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -46,6 +48,10 @@ void BM_MapperMinute(benchmark::State& state) {
   // The third argument 1: without the rigid path (on by default with the filter's poses).
   if (state.range(2) == 1) {
     config.rigid_path = RigidPath::kOff;
+  }
+  if (state.range(3) == 1) {
+    config.window.core_tiles_across = 7;
+    config.projection.max_range_m = 60.0;
   }
   std::unique_ptr<Mapper> mapper;
   std::vector<double> step_us;
@@ -92,8 +98,10 @@ void BM_MapperMinute(benchmark::State& state) {
       extractions > 0 ? 1e3 * extract_s / static_cast<double>(extractions) : 0.0;
 }
 BENCHMARK(BM_MapperMinute)
-    ->ArgsProduct({{5, 7, 9}, {0, 1}, {0}})
-    ->Args({7, 0, 1})
+    ->ArgsProduct({{5, 7, 9}, {0, 1}, {0}, {0}})
+    ->Args({7, 0, 1, 0})
+    ->Args({11, 0, 0, 1})
+    ->Args({11, 1, 0, 1})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(2);
 
