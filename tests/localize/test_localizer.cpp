@@ -308,7 +308,8 @@ TEST(Localizer, ALaggedMapPoseFollowsTheSmoothedPath) {
     if (!lagged.map_pose_horizon(horizon_ns)) {
       continue;
     }
-    // The lagged pose reaches the sample kLagS before this one, and no further.
+    // The lagged pose reaches the sample kLagS before this one, and no further (the stamps
+    // are the synthetic drive's own: no clock is read, and none of this is timed).
     EXPECT_LE(horizon_ns, samples[i].stamp_ns - ns_from_seconds(kLagS));
     const auto then = static_cast<std::size_t>(
         std::lower_bound(samples.begin(), samples.end(), horizon_ns,
@@ -351,7 +352,8 @@ TEST(Localizer, ALaggedMapPoseFollowsTheSmoothedPath) {
   EXPECT_LT(lagged_heading_deg, 0.8 * live_heading_deg);
   EXPECT_LT(lagged_m, live_m);
   EXPECT_LT(largest_step_m, 0.02);
-  // At the end of the input the rest of the lag is drawn, as far as it is asked for.
+  // At the end of the input the rest of the lag is drawn, as far as it is asked for (in the
+  // drive's stamps, as above).
   const TimestampNs end_ns = samples.back().stamp_ns;
   lagged.flush_map_pose(end_ns - ns_from_seconds(5.0));
   TimestampNs horizon_ns = 0;

@@ -573,12 +573,15 @@ map::VoxelWindowConfig far_reaching_window() {
   window.core_tiles_across = 7;
   return window;
 }
+constexpr double kFarReachRangeM = 60.0;  // [projection] max_range_m
 
 // A whole path with true poses through the far-reaching window.
 MapperRun map_with_far_reach(const char* world) {
   const map::VoxelWindowConfig window = far_reaching_window();
-  return map_world(
-      {.world = world, .poses = PoseSource::kExternal, .window = &window, .max_range_m = 60.0});
+  return map_world({.world = world,
+                    .poses = PoseSource::kExternal,
+                    .window = &window,
+                    .max_range_m = kFarReachRangeM});
 }
 
 // benning's three small walls facing east are seen only from 30-60 m: the far-reaching window
@@ -620,7 +623,7 @@ TEST(MapperSim, BenningWithAnRtkReceiverAndAFarReachingWindowMeetsThePlanesIssue
                                    .robot = "paper_rmp_rtk",
                                    .pose_lag_s = 5.0,
                                    .window = &window,
-                                   .max_range_m = 60.0});
+                                   .max_range_m = kFarReachRangeM});
   expect_planes_issue_accuracy(run, score(run, "benning, RTK receiver, far-reaching window"), 0.95);
   EXPECT_EQ(run.points_dropped_full, 0u);
 }
@@ -637,14 +640,14 @@ TEST(MapperSim, DISABLED_TheTableOfBenningsReachOverSeeds) {
                      .robot = "paper_rmp_rtk",
                      .seed = seed,
                      .window = &window,
-                     .max_range_m = 60.0}),
+                     .max_range_m = kFarReachRangeM}),
           (label + ", far-reaching window").c_str());
     score(map_world({.world = "benning",
                      .robot = "paper_rmp_rtk",
                      .pose_lag_s = 5.0,
                      .seed = seed,
                      .window = &window,
-                     .max_range_m = 60.0}),
+                     .max_range_m = kFarReachRangeM}),
           (label + ", far-reaching window, 5 s late").c_str());
   }
 }
@@ -845,7 +848,7 @@ TEST(MapperSim, DISABLED_TheTableOfBenningBuildingsWithAnRtkReceiverOverSeeds) {
                            .pose_lag_s = 5.0,
                            .seed = seed,
                            .window = &window,
-                           .max_range_m = 60.0})
+                           .max_range_m = kFarReachRangeM})
               : map_world({.world = "benning", .robot = "paper_rmp_rtk", .seed = seed});
       const std::string label =
           "seed " + std::to_string(seed) + (far ? ", far_reach_rtk" : ", defaults");
