@@ -17,6 +17,10 @@ if(BLOCKMAP_UNITY)
   set(CMAKE_UNITY_BUILD ON)
   set(CMAKE_UNITY_BUILD_BATCH_SIZE 8)
 endif()
+# The release tree: the libraries and the executable one file at a time, as a user builds
+# them, and the test and benchmark programs in batches (tests/CMakeLists.txt), which a user
+# seldom builds and scripts/test builds whole.
+option(BLOCKMAP_UNITY_TESTS "Compile the test and benchmark programs in batches of eight" OFF)
 option(BLOCKMAP_USE_CCACHE "Use ccache as the compiler launcher when it is installed" ON)
 set(BLOCKMAP_HOST_LABEL "host" CACHE STRING "ctest label of tests built for the host")
 set(BLOCKMAP_TARGET_LABEL "${CMAKE_SYSTEM_PROCESSOR}" CACHE STRING

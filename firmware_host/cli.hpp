@@ -1,4 +1,4 @@
-// The `blockmap` command line (docs/ARCHITECTURE.md 4.3 lists the contract).
+// The `blockmap` command line (docs/formats.md, command line, lists the contract).
 #pragma once
 
 #include <iosfwd>

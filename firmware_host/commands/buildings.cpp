@@ -1,7 +1,7 @@
 // `blockmap buildings INPUT [--config FILE] [--out FILE] [--vrml FILE] [--svg FILE]
-// [--points CLOUD] [--geojson FILE --origin LAT,LON,HEIGHT]`: the buildings (ARCHITECTURE.md 4.2)
-// of a plane list (4.1, as `planes` and `run` write it) or of a point cloud file (planes detected
-// first).
+// [--points CLOUD] [--geojson FILE --origin LAT,LON,HEIGHT]`: the buildings (docs/formats.md,
+// buildings) of a plane list (docs/formats.md, plane list, as `planes` and `run` write it) or of
+// a point cloud file (planes detected first).
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <fstream>

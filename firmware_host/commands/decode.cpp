@@ -1,6 +1,6 @@
 // `blockmap decode PROTOCOL FILE`: decoded messages of a raw capture, one JSON object a line
-// (docs/ARCHITECTURE.md 4.3; 4.6 fixes the NMEA keys). Decoding errors are reported in line
-// and decoding goes on; a summary of what was dropped, and why, goes to stderr.
+// (docs/formats.md, command line; decoded NMEA fixes the NMEA keys). Decoding errors are
+// reported in line and decoding goes on; a summary of what was dropped, and why, goes to stderr.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>

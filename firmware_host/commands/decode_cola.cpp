@@ -1,5 +1,5 @@
 // `blockmap decode cola`: one JSON object per telegram of a SICK TiM/LMS1xx/LMS5xx CoLa stream
-// (docs/PROTOCOLS.md section 3), CoLa A or CoLa B as detected from the first telegram: its
+// (docs/protocols.md section 3), CoLa A or CoLa B as detected from the first telegram: its
 // offset, dialect, type and command; for an LMDscandata scan the beam count, start and step in
 // degrees (scanner frame: x forward, counter-clockwise), scan frequency, the device's counters,
 // ranges_m (null for beams without a valid return) and rssi when present; for other telegrams the

@@ -1,5 +1,5 @@
 // `blockmap decode lms2xx`: one JSON object per telegram of a SICK LMS 200/291 byte stream
-// (docs/PROTOCOLS.md section 2): its offset, address, command and status, the data of generic
+// (docs/protocols.md section 2): its offset, address, command and status, the data of generic
 // replies, and for a B0 scan the count, units, variant, angles and ranges (null for beams with
 // no valid range). ACK/NAK bytes are {"command": "ACK"|"NAK"}; dropped candidates are
 // {"error": reason, "offset": N}.

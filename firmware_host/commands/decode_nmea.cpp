@@ -1,5 +1,5 @@
-// `blockmap decode nmea`: the ARCHITECTURE.md 4.6 object for every sentence that carries a
-// position or a time; rejected sentences as {"error": reason, "line": N}.
+// `blockmap decode nmea`: the object of docs/formats.md, decoded NMEA, for every sentence that
+// carries a position or a time; rejected sentences as {"error": reason, "line": N}.
 #include <cstdio>
 #include <ostream>
 #include <span>
@@ -40,7 +40,7 @@ const char* mode_name(msg::GpsFixMode mode) {
   return nullptr;
 }
 
-// The ARCHITECTURE.md 4.6 object of a sentence that carries a position or a time.
+// The object of docs/formats.md, decoded NMEA, of a sentence that carries a position or a time.
 Json nmea_json(const hal::protocol::nmea::Sentence& sentence) {
   const msg::GpsFix& fix = sentence.fix;
   Json line;
@@ -73,8 +73,8 @@ int decode_nmea(const Capture& capture, std::ostream& out, std::ostream& err) {
   namespace nmea = hal::protocol::nmea;
   const LineIndex lines(capture.bytes);
   nmea::Decoder decoder;
-  // The keys are a contract (ARCHITECTURE.md 4.6): a timed capture's receive times are not
-  // added; the sentences carry their own UTC.
+  // The keys are a contract (docs/formats.md, decoded NMEA): a timed capture's receive times
+  // are not added; the sentences carry their own UTC.
   for (const Chunk& chunk : capture.chunks) {
     std::span<const std::uint8_t> rest(capture.bytes.data() + chunk.offset, chunk.length);
     while (!rest.empty()) {

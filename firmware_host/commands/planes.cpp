@@ -1,5 +1,5 @@
 // `blockmap planes CLOUD [--config FILE] [--out FILE] [--svg FILE [--top]]`: the plane list
-// (docs: ARCHITECTURE.md 4.1) of a point cloud file, and optionally a picture of the planes
+// (docs/formats.md, plane list) of a point cloud file, and optionally a picture of the planes
 // over the points. "seconds" is the detection alone: voxelizing, Hough transform, refinement
 // and merging, not reading the file.
 #include <CLI/CLI.hpp>

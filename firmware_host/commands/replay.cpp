@@ -1,9 +1,10 @@
 // `blockmap replay DIR [--out DIR2]`: the onboard pipeline over recorded device logs
-// (ARCHITECTURE.md 4.3-4.5, docs/log-formats.md). The recorded CAN frames, NMEA bytes and
+// (docs/formats.md, command line; docs/log-formats.md). The recorded CAN frames, NMEA bytes and
 // laser telegrams go through the same device layer as on the robot (SegwayBase, GpsReceiver,
 // Lms2xxScanner) over log-backed ports, merged in time order, into the mapper
-// (pipeline::Mapper): with --out it writes what `run` writes (ARCHITECTURE.md 4.4), without it
-// the smoothed trajectory to stdout. Laser logs are read when robot.toml names the lasers.
+// (pipeline::Mapper): with --out it writes what `run` writes (docs/formats.md, run outputs),
+// without it the smoothed trajectory to stdout. Laser logs are read when robot.toml names the
+// lasers.
 #include <CLI/CLI.hpp>
 #include <cstdint>
 #include <cstdio>

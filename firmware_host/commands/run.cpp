@@ -4,7 +4,8 @@
 // simulated Segway, lasers and GPS put their real bytes on loopback ports, the same device
 // layer as on the robot decodes them, and the pipeline (particle filter, scan projection,
 // sliding voxel window, Hough planes, plane registry) maps as it goes, writing the plane
-// stream, the trajectory and, at the end, the plane list and a VRML map (ARCHITECTURE.md 4.4).
+// stream, the trajectory and, at the end, the plane list and a VRML map
+// (docs/formats.md, run outputs).
 #include <CLI/CLI.hpp>
 #include <memory>
 #include <ostream>

@@ -1,5 +1,5 @@
 // `blockmap simulate --world NAME [--robot NAME] [--seed N] --out DIR [--cloud FILE.ply]`: a
-// recorded run of the simulated robot (docs/ARCHITECTURE.md 4.3-4.5): the devices' raw logs,
+// recorded run of the simulated robot (docs/formats.md, ground truth): the devices' raw logs,
 // exactly as the robot's logger would write them, and the ground truth. The same seed gives the
 // same bytes. --cloud also writes every laser return along the true trajectory (the cloud a
 // perfect localisation would give) as a PLY file, for `blockmap planes` and other tools.

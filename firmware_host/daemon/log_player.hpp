@@ -3,7 +3,7 @@
 // each serial log (laser_<name>.bytelog, gps.nmea) onto a pseudo-terminal whose other end is
 // linked at PTY_DIR/<name> for the daemon to open as a serial port, and the CAN log onto a
 // CanSink (a SocketCAN interface, or a test's bus). `blockmap play` is this, for trying the
-// daemon against recorded bytes on the robot's computer or in the test rig (TEST-RIG.md);
+// daemon against recorded bytes on the robot's computer or in the test rig (docs/design.md);
 // can-utils' canplayer can play the CAN log instead.
 //
 // The logs share one clock: the CAN log's and the byte logs' receive stamps, and the NMEA

@@ -1,4 +1,4 @@
-// Buildings out: the buildings JSON (ARCHITECTURE.md 4.2), GeoJSON footprints in WGS-84 that
+// Buildings out: the buildings JSON (docs/formats.md, buildings), GeoJSON footprints in WGS-84 that
 // GIS tools open (RFC 7946), and a top-view picture (SVG) of points, walls and footprints with
 // the observed walls dark and the virtual ones light and dashed, as the paper draws them.
 #pragma once

@@ -1,9 +1,10 @@
-// What `run` and `replay` write into their --out folder (ARCHITECTURE.md 4.4), as the run goes:
+// What `run` and `replay` write into their --out folder (docs/formats.md, run outputs), as the
+// run goes:
 //   planes.jsonl    one JSON object per plane-list update (plane_json.hpp)
 //   planes.bin      the same updates as the binary plane stream (docs/log-formats.md)
 //   trajectory.csv  the smoothed poses, as they leave the localizer's smoothing window
 //   buildings.jsonl the buildings whenever a refit changed them: {"t_s", "buildings": [...]}
-// and at the end: planes.json (the final plane list, 4.1), buildings.json (4.2), map.wrl (VRML
+// and at the end: planes.json (the final plane list), buildings.json, map.wrl (VRML
 // 2.0, buildings' walls seen dark and virtual light) and footprints.geojson (WGS-84, when the
 // local frame's place on Earth is known). With a UDP
 // destination, each binary record also goes out as one datagram.

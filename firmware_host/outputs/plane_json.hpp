@@ -1,6 +1,6 @@
-// Planes as JSON: the plane list's entries (ARCHITECTURE.md 4.1) and the plane stream's
-// updates, one JSON object per line of planes.jsonl (4.4), the text twin of the binary plane
-// stream (hal/protocol/plane_stream.hpp, docs/log-formats.md).
+// Planes as JSON: the plane list's entries (docs/formats.md, plane list) and the plane stream's
+// updates, one JSON object per line of planes.jsonl (docs/formats.md, run outputs), the text
+// twin of the binary plane stream (hal/protocol/plane_stream.hpp, docs/log-formats.md).
 #pragma once
 
 #include <vector>
@@ -25,7 +25,7 @@ namespace blockmap::cli {
 [[nodiscard]] nlohmann::json plane_json(const msg::PlanePatch& plane,
                                         const Eigen::Vector3d& origin_m = Eigen::Vector3d::Zero());
 
-// The planes of a plane list (4.1), as `blockmap planes` and `run` write it. Every mistake
+// The planes of a plane list, as `blockmap planes` and `run` write it. Every mistake
 // throws std::invalid_argument naming the entry and key ("planes[3].normal: must be 3
 // numbers"); a polygon longer than msg::kMaxPolygonVertices keeps its convex outline's first
 // vertices only when it is no longer than that, else is refused.

@@ -11,7 +11,7 @@ SegwayBase::SegwayBase(CanBus& bus, SpscQueueRef<msg::OdometrySample>& odometry,
     : bus_(bus), odometry_(odometry), imu_(imu), config_(config), decoder_(config.rmp) {}
 
 IoStatus SegwayBase::install_filters() {
-  // PROTOCOLS.md 1.1: id 0x400 mask 0x7F8 is the status group; 0x680 the CU status.
+  // docs/protocols.md 1.1: id 0x400 mask 0x7F8 is the status group; 0x680 the CU status.
   static constexpr std::array<CanFilter, 2> kFilters = {CanFilter{rmp::kStatusFirstId, 0x7F8},
                                                         CanFilter{rmp::kCuStatusId, 0x7FF}};
   return bus_.set_filters(kFilters);

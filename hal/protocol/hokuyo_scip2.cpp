@@ -1,4 +1,4 @@
-// Hokuyo SCIP 2.0 (docs/PROTOCOLS.md section 4): replies framed by a blank line, one checksum
+// Hokuyo SCIP 2.0 (docs/protocols.md section 4): replies framed by a blank line, one checksum
 // character per line, 6-bit characters for values.
 #include "blockmap/hal/protocol/hokuyo_scip2.hpp"
 
@@ -50,7 +50,7 @@ bool parse_digits(std::string_view text, std::uint32_t& value) noexcept {
   return error == std::errc() && end == text.data() + text.size();
 }
 
-// Range code of one value (PROTOCOLS.md 4.7): below DMIN the value is an error code.
+// Range code of one value (docs/protocols.md 4.7): below DMIN the value is an error code.
 msg::BeamStatus beam_status(std::uint32_t value_mm, const SensorParameters& sensor) noexcept {
   if (value_mm >= sensor.min_range_mm) {
     return value_mm <= sensor.max_range_mm ? msg::BeamStatus::kValid : msg::BeamStatus::kNoReturn;
@@ -199,7 +199,7 @@ bool Decoder::read_parameters(std::string_view body) {
   std::string_view line;
   SensorParameters updated = sensor_;
   while (lines.next(line)) {
-    // NAME:value;c with the checksum over everything before the ';' (PROTOCOLS.md 4.2).
+    // NAME:value;c with the checksum over everything before the ';' (docs/protocols.md 4.2).
     const std::size_t semicolon = line.rfind(';');
     const std::size_t colon = line.find(':');
     if (semicolon == std::string_view::npos || semicolon + 2 != line.size() ||
@@ -275,7 +275,7 @@ bool Decoder::read_scan(std::string_view echo, std::string_view body, bool& has_
   if (count != expected || pending_count != 0) {
     return false;
   }
-  // Unwrap the sensor's 24-bit millisecond clock (PROTOCOLS.md 4.5).
+  // Unwrap the sensor's 24-bit millisecond clock (docs/protocols.md 4.5).
   if (has_time_ && raw_time_ms < last_raw_time_ms_) {
     sensor_time_ms_ += kTimestampWrap;
   }

@@ -1,4 +1,4 @@
-// NMEA 0183 codec (docs/PROTOCOLS.md section 5). One state machine frames sentences; one small
+// NMEA 0183 codec (docs/protocols.md section 5). One state machine frames sentences; one small
 // function per sentence type reads its fields.
 #include "blockmap/hal/protocol/nmea.hpp"
 

@@ -1,4 +1,4 @@
-// NMEA 0183 sentence encoders (a simulated GNSS receiver's output). PROTOCOLS.md section 5
+// NMEA 0183 sentence encoders (a simulated GNSS receiver's output). docs/protocols.md section 5
 // gives the field layouts; the decoder in nmea.cpp is their inverse.
 #include <algorithm>
 #include <cmath>

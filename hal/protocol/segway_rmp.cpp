@@ -1,4 +1,4 @@
-// Segway RMP status frames (docs/PROTOCOLS.md 1.3-1.5): 16-bit fields big-endian, 32-bit fields
+// Segway RMP status frames (docs/protocols.md 1.3-1.5): 16-bit fields big-endian, 32-bit fields
 // low word first with each word big-endian.
 #include "blockmap/hal/protocol/segway_rmp.hpp"
 
@@ -14,7 +14,7 @@ namespace {
 constexpr double kRadiansPerDegree = std::numbers::pi / 180.0;
 constexpr std::uint8_t kAllStatusFrames = 0x7E;  // 0x401..0x406
 
-// Slot n = bytes 2n..2n+1, big-endian (PROTOCOLS.md 1.3).
+// Slot n = bytes 2n..2n+1, big-endian (docs/protocols.md 1.3).
 std::uint16_t u16(const CanFrame& frame, std::size_t slot) noexcept {
   return static_cast<std::uint16_t>((frame.data[2 * slot] << 8) | frame.data[2 * slot + 1]);
 }
@@ -110,7 +110,7 @@ Decoder::Step Decoder::push(const CanFrame& frame, TimestampNs rx_stamp_ns) {
     return step;
   }
   if (frame.id == kCuStatusId) {
-    // Motors enabled: CU status word 1 bit 0x0080 (PROTOCOLS.md 1.4; mask the bit).
+    // Motors enabled: CU status word 1 bit 0x0080 (docs/protocols.md 1.4; mask the bit).
     latest_.status.motors_enabled = (u16(frame, 1) & 0x0080U) != 0;
     step.kind = FrameKind::kCuStatus;
     return step;
@@ -147,7 +147,7 @@ Decoder::Step Decoder::push(const CanFrame& frame, TimestampNs rx_stamp_ns) {
   return step;
 }
 
-// One status frame into the latest values (PROTOCOLS.md 1.4 layouts, 1.5 scales).
+// One status frame into the latest values (docs/protocols.md 1.4 layouts, 1.5 scales).
 void Decoder::read_status(const CanFrame& frame) {
   const double yaw_sign = config_.yaw_sign;
   switch (frame.id) {
@@ -187,14 +187,14 @@ void Decoder::read_status(const CanFrame& frame) {
       latest_.velocity_command_counts = s16(frame, 0);
       latest_.turn_command_counts = s16(frame, 1);
       break;
-    default:  // 0x400: cycle start marker, payload unverified (PROTOCOLS.md 1.9)
+    default:  // 0x400: cycle start marker, payload unverified (docs/protocols.md 1.9)
       break;
   }
 }
 
 CanFrame encode_command(std::int16_t velocity_counts, std::int16_t turn_counts,
                         std::uint16_t config_id, std::uint16_t config_value) noexcept {
-  // Limits: +-1176 counts velocity ("8 mph"), +-1024 turn (PROTOCOLS.md 1.6).
+  // Limits: +-1176 counts velocity ("8 mph"), +-1024 turn (docs/protocols.md 1.6).
   CanFrame frame = make_frame(kCommandId);
   put_s16(frame, 0, std::clamp<double>(velocity_counts, -1176.0, 1176.0));
   put_s16(frame, 1, std::clamp<double>(turn_counts, -1024.0, 1024.0));

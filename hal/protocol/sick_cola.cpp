@@ -1,4 +1,4 @@
-// SICK CoLa codec (docs/PROTOCOLS.md section 3). One framing state machine over one telegram
+// SICK CoLa codec (docs/protocols.md section 3). One framing state machine over one telegram
 // buffer; one LMDscandata parser templated on a field reader per dialect (CoLa B big-endian
 // binary, CoLa A hex tokens), so that the hot loops are inlined with no virtual calls; one writer
 // for both dialects behind the encoders.
@@ -20,7 +20,7 @@ namespace {
 
 constexpr std::uint8_t kStx = 0x02;
 constexpr std::uint8_t kEtx = 0x03;
-constexpr std::size_t kColaBHeaderBytes = 8;    // 02 02 02 02 + u32 BE length (PROTOCOLS.md 3.2)
+constexpr std::size_t kColaBHeaderBytes = 8;  // 02 02 02 02 + u32 BE length (docs/protocols.md 3.2)
 constexpr std::size_t kColaBOverheadBytes = 9;  // the header and the XOR byte after the body
 constexpr std::size_t kMaxColaBBodyBytes = 0x7FFFFFFF;  // what a u32 length holds on every target
 constexpr double kDegreesPerAngleUnit = 1e-4;  // LMDscandata angles are 1/10000 degree (3.4)
@@ -29,7 +29,7 @@ constexpr double kMetresPerMillimetre = 1e-3;
 // SICK numbers its beams with 90 degrees straight ahead: a TiM5xx/7xx or LMS1xx scans -45..225,
 // an LMS5xx -5..185, counter-clockwise seen from above. msg::LaserScan wants x forward, y left,
 // counter-clockwise positive, so scanner-frame angle = SICK angle - 90 degrees, the conversion of
-// sick_tim (PROTOCOLS.md 3.4 [S11]) that the S14 start-up log confirms (-45..225 is -135..+135
+// sick_tim (docs/protocols.md 3.4 [S11]) that the S14 start-up log confirms (-45..225 is -135..+135
 // in the robot frame). Beam order and direction stay as sent; no mirroring.
 constexpr double kScannerFrameMinusSickDeg = -90.0;
 
@@ -117,7 +117,7 @@ class BinaryReader {
     value = std::bit_cast<float>(bits);
     return true;
   }
-  // A channel name: 5 characters, no length (PROTOCOLS.md 3.4).
+  // A channel name: 5 characters, no length (docs/protocols.md 3.4).
   bool name(std::array<char, 6>& out) noexcept {
     if (!has(5)) return false;
     for (std::size_t i = 0; i < 5; ++i) {
@@ -157,7 +157,7 @@ class BinaryReader {
 
 // CoLa A fields are tokens separated by a space: unsigned numbers in upper-case hex without
 // leading zeros, s32 as two's complement hex ("FFF92230" = -450000), floats as their IEEE-754
-// bits in hex, some configuration values as signed decimal with '+' or '-' (PROTOCOLS.md 3.2).
+// bits in hex, some configuration values as signed decimal with '+' or '-' (docs/protocols.md 3.2).
 class AsciiReader {
  public:
   explicit AsciiReader(std::string_view text) noexcept : text_(text) {}
@@ -259,7 +259,7 @@ class AsciiReader {
   std::size_t position_ = 0;
 };
 
-// --- LMDscandata (PROTOCOLS.md 3.4): the same field order in both dialects
+// --- LMDscandata (docs/protocols.md 3.4): the same field order in both dialects
 
 template <typename Reader>
 class ScanParser {
@@ -348,7 +348,7 @@ class ScanParser {
     return ok ? std::nullopt : std::optional<DropReason>(DropReason::kMalformed);
   }
 
-  // Range = value x scale x 0.001 + offset, in metres (PROTOCOLS.md 3.4 [S14]); 0 = no echo
+  // Range = value x scale x 0.001 + offset, in metres (docs/protocols.md 3.4 [S14]); 0 = no echo
   // [S11]. Every capture uses scale 1 and offset 0 (3.6 [UNVERIFIED] for other scales).
   bool distances(const ScanChannel& block) noexcept {
     const double metres_per_unit = static_cast<double>(block.scale_factor) * kMetresPerMillimetre;
@@ -360,7 +360,7 @@ class ScanParser {
   }
 
   // After the channels: u16 flags for position, name, comment and time, each followed by its
-  // block when set. PROTOCOLS.md 3.4 gives the time block only, so the time is read when the
+  // block when set. docs/protocols.md 3.4 gives the time block only, so the time is read when the
   // blocks before it are absent (as in every capture) and is left out otherwise. A short or odd
   // trailer does not make the scan invalid: the scan itself is complete by now.
   void trailer() noexcept {
@@ -396,7 +396,7 @@ void fill_scan(const ScanInfo& info, const Telegram& telegram, const Config& con
                          kRadiansPerDegree;
   scan.angle_increment_rad =
       static_cast<double>(d.step_1e4deg) * kDegreesPerAngleUnit * kRadiansPerDegree;
-  // Scan frequency in 1/100 Hz, measurement frequency in 100 Hz (PROTOCOLS.md 3.4, sick_tim's
+  // Scan frequency in 1/100 Hz, measurement frequency in 100 Hz (docs/protocols.md 3.4, sick_tim's
   // "scan time = 100/freq; time increment = 1/(measfreq*100)" [S11]).
   scan.scan_period_s = info.scan_frequency_centihz == 0
                            ? 0.0
@@ -689,7 +689,7 @@ Decoder::Examination Decoder::examine() noexcept {
   return candidate_dialect() == Dialect::kColaB ? examine_cola_b() : examine_cola_a();
 }
 
-// `02 02 02 02 | u32 BE length | body | XOR(body)` (PROTOCOLS.md 3.2 [solid]).
+// `02 02 02 02 | u32 BE length | body | XOR(body)` (docs/protocols.md 3.2 [solid]).
 Decoder::Examination Decoder::examine_cola_b() noexcept {
   const std::size_t pattern_bytes = std::min<std::size_t>(length_, 4);
   for (std::size_t k = 1; k < pattern_bytes; ++k) {
@@ -715,7 +715,7 @@ Decoder::Examination Decoder::examine_cola_b() noexcept {
   return {Outcome::kComplete, frame_bytes, DropReason::kGarbage};
 }
 
-// `02 | printable ASCII | 03`, no checksum (PROTOCOLS.md 3.2 [solid]). A CoLa A telegram holds
+// `02 | printable ASCII | 03`, no checksum (docs/protocols.md 3.2 [solid]). A CoLa A telegram holds
 // no STX, so a rejected one never hides the start of the next: nothing is searched again.
 Decoder::Examination Decoder::examine_cola_a() noexcept {
   const std::size_t stop = scanned_ + find_cola_a_stop(std::span<const std::uint8_t>(

@@ -1,4 +1,4 @@
-// SICK LMS 200 / 291 telegram codec (docs/PROTOCOLS.md section 2). One byte-at-a-time state
+// SICK LMS 200 / 291 telegram codec (docs/protocols.md section 2). One byte-at-a-time state
 // machine frames telegrams; small functions encode requests and read the B0 measured values.
 #include "blockmap/hal/protocol/sick_lms2xx.hpp"
 
@@ -54,7 +54,7 @@ constexpr double kRadiansPerDegree = std::numbers::pi / 180.0;
 
 std::uint16_t range_mask_of(std::uint8_t range_bits) {
   BLOCKMAP_CHECK_MSG(range_bits >= 13 && range_bits <= 15,
-                     "LMS2xx range bits must be 13, 14 or 15 (PROTOCOLS.md 2.6)");
+                     "LMS2xx range bits must be 13, 14 or 15 (docs/protocols.md 2.6)");
   return static_cast<std::uint16_t>((1U << range_bits) - 1U);
 }
 
@@ -638,7 +638,7 @@ std::optional<DropReason> Decoder::read_measured_values() {
   // Value 0 lies at the scanner's right-hand 0 deg mark, 90 deg is straight ahead (2.8).
   scan.start_angle_rad = -0.5 * static_cast<double>(g.field_deg) * kRadiansPerDegree;
   scan.angle_increment_rad = static_cast<double>(g.resolution_centideg) * 0.01 * kRadiansPerDegree;
-  scan.time_increment_s = 0.0;  // not stated in PROTOCOLS.md
+  scan.time_increment_s = 0.0;  // not stated in docs/protocols.md
   scan.scan_period_s = 0.0;
   scan.range_min_m = 0.0;
   scan.range_max_m = range_max_m(t.units, config_.range_bits);

@@ -1,8 +1,8 @@
 // The simulated SICK LMS2xx: after the host's request for continuous output (20 24) it
 // acknowledges (06, then an A0 reply) and sends a B0 telegram for every scan the serial line has
-// room for (PROTOCOLS.md 2.5, 2.6). The mirror turns at 75 Hz; a 180 deg scan takes half a turn,
-// beam by beam, and a 0.5 deg scan interlaces two turns. Every beam is cast into the scene from
-// the sensor's pose at the instant it was measured, so the robot's motion and pitch during a
+// room for (docs/protocols.md 2.5, 2.6). The mirror turns at 75 Hz; a 180 deg scan takes half a
+// turn, beam by beam, and a 0.5 deg scan interlaces two turns. Every beam is cast into the scene
+// from the sensor's pose at the instant it was measured, so the robot's motion and pitch during a
 // scan are in the data, as they are on the real robot.
 #include <algorithm>
 #include <cmath>

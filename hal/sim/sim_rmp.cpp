@@ -1,4 +1,4 @@
-// The simulated Segway RMP: every 10 ms the status group 0x400-0x407 (PROTOCOLS.md 1.2), with
+// The simulated Segway RMP: every 10 ms the status group 0x400-0x407 (docs/protocols.md 1.2), with
 // wheel odometry that has the tyre-pressure scale error and random slip, a yaw-rate gyro with a
 // bias, and the base's own pitch and roll, all through the codec's encoder.
 #include <cmath>

@@ -1,5 +1,5 @@
 // Hokuyo SCIP 2.0: worked examples, a real URG-04LX session (../shared, GPL: not shipped),
-// encoder round trips, chunking invariance, corruption (docs/PROTOCOLS.md section 4).
+// encoder round trips, chunking invariance, corruption (docs/protocols.md section 4).
 #include "blockmap/hal/protocol/hokuyo_scip2.hpp"
 
 #include <gtest/gtest.h>

@@ -1,5 +1,5 @@
 // NMEA 0183 codec: golden sentences, real receiver logs against gpsd's expected output,
-// chunking invariance and corruption (docs/PROTOCOLS.md section 5).
+// chunking invariance and corruption (docs/protocols.md section 5).
 #include "blockmap/hal/protocol/nmea.hpp"
 
 #include <gtest/gtest.h>
@@ -96,7 +96,7 @@ constexpr std::int32_t hms_ms(int h, int m, int s, int ms = 0) {
   return ((h * 60 + m) * 60 + s) * 1000 + ms;
 }
 
-// --- golden sentences (docs/PROTOCOLS.md 5.x; values as in vectors/nmea/decoded_examples.json)
+// --- golden sentences (docs/protocols.md 5.x; values as in vectors/nmea/decoded_examples.json)
 
 TEST(Nmea, ChecksumWorkedExample) {
   const std::string_view body = "GPGLL,,,,,,V,N";

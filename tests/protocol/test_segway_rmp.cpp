@@ -1,5 +1,5 @@
 // Segway RMP codec and candump log lines: golden frames from libsegwayrmp's tests and a real
-// Orca bus capture, status-group assembly, encoders (docs/PROTOCOLS.md section 1).
+// Orca bus capture, status-group assembly, encoders (docs/protocols.md section 1).
 #include "blockmap/hal/protocol/segway_rmp.hpp"
 
 #include <gtest/gtest.h>
@@ -116,7 +116,7 @@ TEST(SegwayRmp, RealOrcaCaptureAssemblesTheTwoCompleteGroups) {
   EXPECT_TRUE(first.status.motors_enabled) << "0x680 word 1 bit 0x0080";
   EXPECT_EQ(first.odometry.header.stamp_ns + 10'000'000, cycles.back().odometry.header.stamp_ns)
       << "a group is stamped with its 0x400 frame";
-  // The servo frame counter advances by one per group (PROTOCOLS.md 1.2).
+  // The servo frame counter advances by one per group (docs/protocols.md 1.2).
   EXPECT_EQ(cycles.back().odometry.servo_frame_count, first.odometry.servo_frame_count + 1);
 }
 
@@ -225,7 +225,7 @@ TEST(SegwayRmp, BadFramesAreCountedByReason) {
   EXPECT_EQ(decoder.drops().value(DropReason::kForeignId), 1u);
 }
 
-// --- encoders: the worked examples of PROTOCOLS.md 1.6
+// --- encoders: the worked examples of docs/protocols.md 1.6
 
 TEST(SegwayRmp, CommandEncoderMatchesTheWorkedExamples) {
   EXPECT_EQ(text_of(encode_command(0, 0)), "413#0000000000000000");
@@ -236,7 +236,7 @@ TEST(SegwayRmp, CommandEncoderMatchesTheWorkedExamples) {
   EXPECT_EQ(text_of(encode_shutdown()), "412#0000000000000000");
 }
 
-// --- candump log lines (ARCHITECTURE.md 4.5)
+// --- candump log lines (docs/log-formats.md)
 
 TEST(Candump, ParsesAndFormatsTheLogFormat) {
   candump::Record record;

@@ -1,6 +1,6 @@
 // SICK CoLa codec: real CoLa B telegrams against their reference decode, the five real TCP
 // captures, the start-up command frames of a real log re-encoded byte for byte, encode/decode
-// round trips in both dialects, chunking invariance and corruption (docs/PROTOCOLS.md section 3).
+// round trips in both dialects, chunking invariance and corruption (docs/protocols.md section 3).
 #include "blockmap/hal/protocol/sick_cola.hpp"
 
 #include <gtest/gtest.h>
@@ -215,7 +215,7 @@ Bytes encoded(Encode&& encode, std::size_t capacity = std::size_t{32} * 1024) {
   return out;
 }
 
-// --- golden frames (PROTOCOLS.md 3.2 worked examples)
+// --- golden frames (docs/protocols.md 3.2 worked examples)
 
 TEST(SickCola, ChecksumAndFramingWorkedExamples) {
   const Bytes run = bytes_of("sMN Run");
@@ -238,7 +238,7 @@ TEST(SickCola, ColaACommandsAreTextBetweenStxAndEtx) {
     EXPECT_EQ(frame.back(), 0x03);
     return std::string(frame.begin() + 1, frame.end() - 1);
   };
-  // The CoLa A commands of the public drivers (PROTOCOLS.md 3.3; S14 sends "3 F4724744").
+  // The CoLa A commands of the public drivers (docs/protocols.md 3.3; S14 sends "3 F4724744").
   EXPECT_EQ(text(encoded([](auto out) {
               return encode_set_access_mode(Dialect::kColaA, kAccessLevelAuthorizedClient,
                                             kAuthorizedClientPasswordHash, out);
@@ -399,7 +399,7 @@ TEST(SickCola, Frame00MatchesTheReferenceDecodeFieldByField) {
         << i;
     no_return += expect_no_return ? 1U : 0U;
   }
-  EXPECT_GT(no_return, 10u) << "the frame has a run of value 2 with RSSI 0 (PROTOCOLS.md 3.5)";
+  EXPECT_GT(no_return, 10u) << "the frame has a run of value 2 with RSSI 0 (docs/protocols.md 3.5)";
   EXPECT_FLOAT_EQ(scan.ranges_m[0], 0.626F);
   EXPECT_FLOAT_EQ(scan.ranges_m[810], 0.176F);
 

@@ -1,5 +1,5 @@
 // SICK LMS 200 / 291 codec: the CRC worked example and documented telegrams, a real B0 capture,
-// encode -> decode round trips, chunking invariance and corruption (docs/PROTOCOLS.md section 2).
+// encode -> decode round trips, chunking invariance and corruption (docs/protocols.md section 2).
 #include "blockmap/hal/protocol/sick_lms2xx.hpp"
 
 #include <gtest/gtest.h>
@@ -228,7 +228,7 @@ Bytes mode_reply(std::uint8_t result = 0x00, std::uint8_t address = kReplyAddres
   });
 }
 
-// --- CRC and the documented telegrams (PROTOCOLS.md 2.3, 2.4)
+// --- CRC and the documented telegrams (docs/protocols.md 2.3, 2.4)
 
 TEST(Lms2xx, CrcWorkedExampleStepByStep) {
   // The table of 2.3: the CRC after each byte of the status request.
@@ -287,7 +287,7 @@ TEST(Lms2xx, EncodersRefuseWhatTheProtocolCannotCarry) {
 }
 
 TEST(Lms2xx, MeasuredValuesTelegramSizesAreTheDocumentedOnes) {
-  // PROTOCOLS.md 2.6, default configuration: 181 -> 372, 361 -> 732, 401 -> 812, 101 -> 212,
+  // docs/protocols.md 2.6, default configuration: 181 -> 372, 361 -> 732, 401 -> 812, 101 -> 212,
   // 201 -> 412 bytes [S10].
   const std::pair<AngularVariant, std::size_t> sizes[] = {{AngularVariant::k180Deg1Deg, 372},
                                                           {AngularVariant::k180DegHalfDeg, 732},
@@ -474,7 +474,7 @@ TEST(Lms2xx, MeasuredValuesRoundTripForEveryVariantUnitAndRangeMode) {
 }
 
 TEST(Lms2xx, ReservedRangeCodesBecomeBeamStatuses) {
-  // PROTOCOLS.md 2.6 [single: S8]: mask-0 not valid, -1 dazzle, -2 overflow, -4 low SNR, -5
+  // docs/protocols.md 2.6 [single: S8]: mask-0 not valid, -1 dazzle, -2 overflow, -4 low SNR, -5
   // read error, -8 value > max; -3, -6 and -7 are not reserved and read as ranges. The 14/15-bit
   // codes follow the same pattern (3FFx / 7FFx).
   using msg::BeamStatus;
@@ -523,7 +523,7 @@ TEST(Lms2xx, EncodeBeamSaturatesAndMapsStatuses) {
 }
 
 TEST(Lms2xx, RangeModeHelpers) {
-  // PROTOCOLS.md 2.5/2.6: modes 00-02 13 bits, 03-05 14, 06 15; 8/16/32 m in mm, x10 in cm.
+  // docs/protocols.md 2.5/2.6: modes 00-02 13 bits, 03-05 14, 06 15; 8/16/32 m in mm, x10 in cm.
   EXPECT_EQ(range_bits_of_measuring_mode(0x00), 13);
   EXPECT_EQ(range_bits_of_measuring_mode(0x02), 13);
   EXPECT_EQ(range_bits_of_measuring_mode(0x03), 14);
@@ -554,7 +554,7 @@ TEST(Lms2xx, ConfiguredVariantOverridesTheCountAndRejectsOthers) {
 }
 
 TEST(Lms2xx, StatusByteSeverity) {
-  // PROTOCOLS.md 2.7: bits 0-2 0 ok .. 4 fatal; 0x10 means nothing known; pollution (0x80) and
+  // docs/protocols.md 2.7: bits 0-2 0 ok .. 4 fatal; 0x10 means nothing known; pollution (0x80) and
   // implausible values (0x40, UNVERIFIED against S9) warn; a restart (0x20) informs.
   using msg::DeviceSeverity;
   EXPECT_EQ(severity_of_status(0x00), DeviceSeverity::kOk);

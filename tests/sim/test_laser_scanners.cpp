@@ -56,7 +56,7 @@ TEST(Lms2xxScanner, StartsContinuousOutputAndPublishesEveryScan) {
   // When the device starts it and reads the line to its end
   ASSERT_EQ(scanner.start(), IoStatus::kOk);
   const std::vector<msg::LaserScan> scans = poll_until_closed(scanner, queue);
-  // Then the host sent exactly "continuous output" (PROTOCOLS.md 2.3) and got every scan
+  // Then the host sent exactly "continuous output" (docs/protocols.md 2.3) and got every scan
   const std::vector<std::uint8_t> expected_request = {0x02, 0x00, 0x02, 0x00,
                                                       0x20, 0x24, 0x34, 0x08};
   ASSERT_EQ(port.written().size(), expected_request.size());

@@ -52,11 +52,13 @@ inline std::filesystem::path simulated_logs(const std::vector<std::string>& args
   namespace fs = std::filesystem;
   std::string name = "sim";
   for (const std::string& arg : args) {
-    name += "_" + arg;
+    name += '_';
+    name += arg;
   }
   std::error_code error;
   const auto built = fs::last_write_time("/proc/self/exe", error).time_since_epoch();
-  name += "_" + std::to_string(std::chrono::duration_cast<std::chrono::seconds>(built).count());
+  name += '_';
+  name += std::to_string(std::chrono::duration_cast<std::chrono::seconds>(built).count());
   fs::path folder = fs::path(BLOCKMAP_TEST_CACHE_DIR) / name;  // returned: not const, moved
   if (fs::exists(folder / "truth.json")) {
     return folder;

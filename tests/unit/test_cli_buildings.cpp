@@ -1,4 +1,4 @@
-// `blockmap buildings INPUT`: the buildings of ARCHITECTURE.md 4.2 from a plane list or a
+// `blockmap buildings INPUT`: the buildings (docs/formats.md, buildings) from a plane list or a
 // cloud, the VRML map, the SVG picture and GeoJSON footprints; one-line errors and a non-zero
 // status for bad input.
 #include <gtest/gtest.h>

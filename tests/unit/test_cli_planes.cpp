@@ -1,5 +1,5 @@
-// `blockmap planes CLOUD`: the plane list of ARCHITECTURE.md 4.1 from a file, one-line errors
-// and a non-zero status for bad files and bad configurations.
+// `blockmap planes CLOUD`: the plane list (docs/formats.md, plane list) from a file, one-line
+// errors and a non-zero status for bad files and bad configurations.
 #include <gtest/gtest.h>
 #include <unistd.h>
 

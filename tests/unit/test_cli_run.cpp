@@ -1,6 +1,6 @@
 // `blockmap run`: the onboard mapper on the built-in simulated city block writes what
-// ARCHITECTURE.md 4.4 lists, reports its memory against the budget first, takes its window and
-// ranges from --config, and refuses bad options and configs in one line.
+// docs/formats.md (run outputs) lists, reports its memory against the budget first, takes its
+// window and ranges from --config, and refuses bad options and configs in one line.
 #include <gtest/gtest.h>
 #include <unistd.h>
 

@@ -1,5 +1,5 @@
 // GPIO lines through libgpiod (hal/linux/gpiod_line.hpp) on a real kernel's GPIO chip. The host
-// here has none (docs/TEST-RIG): the tests that need one skip there and run in the arm64 guest
+// here has none (docs/design.md): the tests that need one skip there and run in the arm64 guest
 // of scripts/guest-test, whose `virt` machine has a PL061 controller (gpiochip0, 8 lines) with
 // QEMU's power button wired to line 3.
 #include <gtest/gtest.h>

@@ -1,5 +1,5 @@
 // A SICK TiM over a real USB stack (hal/linux/libusb_bulk.hpp through libusb-1.0). The host here
-// has no USB (docs/TEST-RIG): there the tests check the one-line error of a device that is not
+// has no USB (docs/design.md): there the tests check the one-line error of a device that is not
 // on the bus. In the arm64 guest, scripts/guest-test's usb rig (tests/system/guest_hal.sh)
 // serves a TiM from tim_gadget on FunctionFS over dummy_hcd, the same kernel's host side
 // enumerates it, and libusb opens it as it opens a TiM on the robot.

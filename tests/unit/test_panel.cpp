@@ -233,7 +233,8 @@ TEST(Panel, ThePpsLinesRisingEdgesReachThePipelineWithTheirStamps) {
   std::ostringstream err;
   ASSERT_EQ(panel.start(config, err), "");
   EXPECT_NE(err.str().find("GPS PPS gpio:gpiochip0:4: up"), std::string::npos) << err.str();
-  ASSERT_NE(panel.pps_edges(), nullptr);
+  auto* const edges = panel.pps_edges();
+  ASSERT_NE(edges, nullptr);
   // Three pulses: up at the second, down 100 ms later (the fake stamps its edges 1, 2, 3 ...).
   for (int pulse = 0; pulse < 3; ++pulse) {
     lines.pps->drive(true);
@@ -241,7 +242,7 @@ TEST(Panel, ThePpsLinesRisingEdgesReachThePipelineWithTheirStamps) {
   }
   ASSERT_TRUE(eventually([&] { return panel.pps_edges_seen() == 3; }));
   std::vector<TimestampNs> stamps;
-  for (TimestampNs stamp = 0; panel.pps_edges()->try_pop(stamp);) {
+  for (TimestampNs stamp = 0; edges->try_pop(stamp);) {
     stamps.push_back(stamp);
   }
   EXPECT_EQ(stamps, (std::vector<TimestampNs>{1, 3, 5})) << "the rising edges only";

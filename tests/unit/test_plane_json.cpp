@@ -1,5 +1,5 @@
 // The plane stream as JSON Lines: one object per update, with every change in its list, the
-// planes in the plane list's own form (ARCHITECTURE.md 4.1 and 4.4).
+// planes in the plane list's own form (docs/formats.md, plane list and run outputs).
 #include <gtest/gtest.h>
 
 #include <string>

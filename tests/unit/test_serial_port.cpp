@@ -247,7 +247,7 @@ TEST(SerialPort, AnLms2xxScannerStartsAndStreamsThroughARealTerminal) {
   EXPECT_EQ(scanner.decoder().scans_decoded(), 4u);
 }
 
-// An LMS2xx at the master end for the baud-rate handshake (PROTOCOLS.md 2.4): it talks at
+// An LMS2xx at the master end for the baud-rate handshake (docs/protocols.md 2.4): it talks at
 // `rate_bd` (9600 after power-up) and answers only requests sent at that rate, a mode switch
 // with 06 and A0 00 (at the old rate, then it switches). It records each request and the line
 // rate the port had set when it came.

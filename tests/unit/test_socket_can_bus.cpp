@@ -1,5 +1,5 @@
 // SocketCAN (hal/linux/socket_can_bus.hpp) on a real kernel's vcan0. The host kernel here has no
-// CAN at all (docs/TEST-RIG): these tests skip there and run in the arm64 guest, where
+// CAN at all (docs/design.md): these tests skip there and run in the arm64 guest, where
 // scripts/guest-test loads can, can-raw, can-dev and vcan and brings vcan0 up.
 #include <gtest/gtest.h>
 #include <net/if.h>

@@ -1,6 +1,6 @@
 // A building of the map (seed, section IV): its footprint, the shape model it was fitted to,
 // and its walls, each observed (drawn from a plane of the plane list) or virtual (estimated
-// where the robot never saw a wall). The buildings JSON of ARCHITECTURE.md 4.2.
+// where the robot never saw a wall). The buildings JSON of docs/formats.md, buildings.
 #pragma once
 
 #include <array>

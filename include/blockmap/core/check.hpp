@@ -1,4 +1,4 @@
-// CHECK: the first of the three tiers of failure (see docs/ARCHITECTURE.md, "Failures").
+// CHECK: the first of the three tiers of failure (see docs/formats.md, "Failures").
 //
 //   a bug (a broken invariant)      BLOCKMAP_CHECK        -> the check handler, never returns
 //   an expected I/O outcome         IoStatus (status.hpp) -> returned, [[nodiscard]]

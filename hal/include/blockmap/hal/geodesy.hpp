@@ -1,5 +1,5 @@
-// Geodetic coordinates <-> the local East-North-Up frame the mapper works in (ARCHITECTURE.md
-// section 2: metres, anchored at the first good GPS fix or a configured origin). The
+// Geodetic coordinates <-> the local East-North-Up frame the mapper works in (docs/formats.md,
+// frames: metres, anchored at the first good GPS fix or a configured origin). The
 // conversions are GeographicLib's (WGS-84 ellipsoid), not hand-written.
 #pragma once
 

@@ -31,7 +31,7 @@ struct DaemonConfig {
   // One per laser of the robot, in the order of its [[lasers]]; a missing one maps without it.
   std::vector<std::optional<DeviceAddress>> lasers;
   // The rate the LMS2xx lasers power up at (9600): start-up brings them to their line's rate
-  // (PROTOCOLS.md 2.4). 0: they are at the line's rate already (no handshake).
+  // (docs/protocols.md 2.4). 0: they are at the line's rate already (no handshake).
   std::uint32_t lms_power_up_baud = 0;
   std::optional<DeviceAddress> gps;            // serial:
   std::optional<DeviceAddress> status_led;     // gpio: an output

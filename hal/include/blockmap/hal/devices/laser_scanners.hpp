@@ -1,7 +1,7 @@
 // Laser scanners on their ports: each start() sends the commands that make the device stream
 // scans, each poll() reads once, decodes and publishes every complete scan into the runtime's
 // queue. Scans are stamped by the codec with the arrival of their first byte, minus the
-// configured latency (transfer and sweep time, PROTOCOLS.md section 6).
+// configured latency (transfer and sweep time, docs/protocols.md section 6).
 #pragma once
 
 #include <array>
@@ -49,7 +49,7 @@ struct Lms2xxScannerConfig {
   TimestampNs latency_ns = 0;
   // The time between two beams (the B0 telegram does not carry it); 0: unknown.
   double beam_interval_s = 0.0;
-  // The baud-rate handshake (PROTOCOLS.md 2.4): an LMS2xx powers up at 9600 Bd. With
+  // The baud-rate handshake (docs/protocols.md 2.4): an LMS2xx powers up at 9600 Bd. With
   // power_up_baud set and line_baud another rate, start() first asks for continuous output at
   // line_baud (a scanner that kept that rate since the last start answers); when nothing
   // answers within reply_timeout_ns, it asks at power_up_baud for line_baud (20 4x, answered
@@ -61,7 +61,7 @@ struct Lms2xxScannerConfig {
   TimestampNs reply_timeout_ns = 200'000'000;  // the ACK is due within 60 ms, the reply after
 };
 
-// An LMS2xx's timing when one mirror turn makes a scan (the 1 deg variants; PROTOCOLS.md 2):
+// An LMS2xx's timing when one mirror turn makes a scan (the 1 deg variants; docs/protocols.md 2):
 // the mirror turns at 75 Hz, so beams are resolution / 360 of a turn apart, and the field is
 // centred on the half turn facing forward (a 100 deg field starts 40 deg into it). The
 // telegram's first byte leaves about processing_s after that half turn; the stamp moves back
@@ -69,7 +69,7 @@ struct Lms2xxScannerConfig {
 [[nodiscard]] Lms2xxScannerConfig lms2xx_single_turn_timing(double field_deg, double resolution_deg,
                                                             double processing_s = 0.001);
 
-// SICK LMS 200/291 on a serial line (PROTOCOLS.md 2.5: continuous output after 20 24).
+// SICK LMS 200/291 on a serial line (docs/protocols.md 2.5: continuous output after 20 24).
 class Lms2xxScanner : public ScanPublisher {
  public:
   Lms2xxScanner(ByteStream& port, SpscQueueRef<msg::LaserScan>& scans,
@@ -106,7 +106,7 @@ struct UrgScannerConfig {
   TimestampNs latency_ns = 0;
 };
 
-// Hokuyo URG/UTM on USB CDC-ACM or serial (PROTOCOLS.md 4.1-4.5): switch to SCIP 2.0, read the
+// Hokuyo URG/UTM on USB CDC-ACM or serial (docs/protocols.md 4.1-4.5): switch to SCIP 2.0, read the
 // geometry (PP), laser on (BM), then continuous three-character scans over the valid steps (MD).
 class UrgScanner : public ScanPublisher {
  public:
@@ -129,13 +129,14 @@ class UrgScanner : public ScanPublisher {
 
 struct TimScannerConfig {
   protocol::sick_cola::Config codec;  // framing kDetect reads either dialect
-  // Over USB a TiM speaks CoLa A (PROTOCOLS.md 3.1); the start command goes out in this dialect.
+  // Over USB a TiM speaks CoLa A (docs/protocols.md 3.1); the start command goes out in this
+  // dialect.
   protocol::sick_cola::Dialect dialect = protocol::sick_cola::Dialect::kColaA;
   TimestampNs transfer_timeout_ns = kNanosecondsPerSecond;  // sick_tim uses 1000 ms
   TimestampNs latency_ns = 0;
 };
 
-// SICK TiM on USB bulk endpoints (PROTOCOLS.md 3.1, 3.3): start() enables the scan events
+// SICK TiM on USB bulk endpoints (docs/protocols.md 3.1, 3.3): start() enables the scan events
 // (sEN LMDscandata 1); poll() runs one IN transfer through the CoLa decoder.
 class TimScanner : public ScanPublisher {
  public:

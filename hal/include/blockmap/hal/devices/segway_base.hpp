@@ -1,6 +1,6 @@
 // SegwayBase: a Segway RMP on a CanBus. Each poll() drains the frames the bus has and publishes
 // one odometry and one IMU sample per complete status group into the runtime's queues. The base
-// is only listened to: no command is sent (PROTOCOLS.md 1.7: a host that commands must keep
+// is only listened to: no command is sent (docs/protocols.md 1.7: a host that commands must keep
 // sending every 10-300 ms, which is not the mapper's job).
 #pragma once
 

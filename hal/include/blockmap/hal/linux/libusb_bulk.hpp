@@ -1,5 +1,5 @@
 // LibusbBulk: the bulk endpoints of a vendor-specific USB device through libusb-1.0, for a SICK
-// TiM (19a2:5001, PROTOCOLS.md 3.1): the first interface whose endpoints are a bulk IN and a
+// TiM (19a2:5001, docs/protocols.md 3.1): the first interface whose endpoints are a bulk IN and a
 // bulk OUT is claimed (a kernel driver bound to it is detached first).
 //
 // The IN endpoint is read with libusb's asynchronous transfers: kInTransfers of them are kept

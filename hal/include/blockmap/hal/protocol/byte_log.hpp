@@ -1,7 +1,7 @@
 // The timestamped byte log: how blockmap records a serial or USB device's raw bytes with their
-// receive times (ARCHITECTURE.md 4.5 "lasers as their raw telegrams with receive timestamps";
-// the format is documented in docs/log-formats.md). A file is the 8-byte magic "BMBYTES1" and
-// then records, each a 16-byte header and the bytes one read returned:
+// receive times (the format is documented in docs/log-formats.md, "Timestamped byte log"). A
+// file is the 8-byte magic "BMBYTES1" and then records, each a 16-byte header and the bytes one
+// read returned:
 //
 //   offset 0  int64  LE  receive time, ns (the time base of the run: Unix time for recordings)
 //   offset 8  uint32 LE  byte count n (at most kMaxRecordBytes)

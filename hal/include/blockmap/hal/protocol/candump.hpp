@@ -1,4 +1,4 @@
-// can-utils' candump log format (docs/ARCHITECTURE.md 4.5): one frame a line,
+// can-utils' candump log format (docs/log-formats.md): one frame a line,
 //   (1436509052.249713) can0 401#FFF9000FFFFF0009
 // so that real captures replay with canplayer and blockmap's logs read in candump tools.
 // Pure text functions: no I/O, no heap.

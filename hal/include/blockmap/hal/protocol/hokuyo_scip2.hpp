@@ -1,4 +1,4 @@
-// Hokuyo SCIP 2.0 codec (URG/UTM laser scanners over USB CDC-ACM or serial; docs/PROTOCOLS.md
+// Hokuyo SCIP 2.0 codec (URG/UTM laser scanners over USB CDC-ACM or serial; docs/protocols.md
 // section 4). Pure: no file descriptors, no clock, no heap after construction.
 //
 // The sensor answers every command with a block of lines ended by an empty line: the echo of
@@ -21,7 +21,8 @@
 
 namespace blockmap::hal::protocol::hokuyo_scip2 {
 
-// The geometry a PP reply reports (PROTOCOLS.md 4.6). Defaults: the URG-04LX of the real session.
+// The geometry a PP reply reports (docs/protocols.md 4.6). Defaults: the URG-04LX of the real
+// session.
 struct SensorParameters {
   std::uint32_t min_range_mm = 20;      // DMIN
   std::uint32_t max_range_mm = 5600;    // DMAX
@@ -102,7 +103,7 @@ class Decoder {
   MonotonicCounter scans_;
 };
 
-// --- the character code and checksums (PROTOCOLS.md 4.2, 4.3)
+// --- the character code and checksums (docs/protocols.md 4.2, 4.3)
 
 // (sum of the bytes) & 0x3F, + 0x30.
 [[nodiscard]] char checksum(std::string_view payload) noexcept;

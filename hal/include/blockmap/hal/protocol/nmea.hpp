@@ -1,4 +1,4 @@
-// NMEA 0183 codec: GNSS receiver bytes in, decoded sentences out (docs/PROTOCOLS.md section 5).
+// NMEA 0183 codec: GNSS receiver bytes in, decoded sentences out (docs/protocols.md section 5).
 //
 // Pure: no file descriptors, no clock, no heap. Bytes may arrive in any chunking; the result
 // is the same. A sentence is stamped with the receive time of the chunk that held its '$'.

@@ -1,4 +1,4 @@
-// Segway RMP codec (classic RMP 50/100/200/400 CAN interface; docs/PROTOCOLS.md section 1).
+// Segway RMP codec (classic RMP 50/100/200/400 CAN interface; docs/protocols.md section 1).
 //
 // The base sends a group of status frames 0x400..0x407 every 10 ms. The decoder reads each
 // frame and, when 0x407 closes a group that held every frame 0x401..0x406, hands out one
@@ -17,7 +17,7 @@
 
 namespace blockmap::hal::protocol::segway_rmp {
 
-// CAN identifiers (PROTOCOLS.md 1.2).
+// CAN identifiers (docs/protocols.md 1.2).
 inline constexpr std::uint32_t kStatusFirstId = 0x400;  // cycle start; payload unverified
 inline constexpr std::uint32_t kStatusLastId = 0x407;   // cycle end
 inline constexpr std::uint32_t kShutdownId = 0x412;
@@ -26,7 +26,7 @@ inline constexpr std::uint32_t kCuStatusId = 0x680;
 
 enum class Model : std::uint8_t { kRmp50, kRmp100, kRmp200, kRmp400 };
 
-// Counts per SI unit (PROTOCOLS.md 1.5). RMP 400 = two RMP 200 power bases.
+// Counts per SI unit (docs/protocols.md 1.5). RMP 400 = two RMP 200 power bases.
 struct ScaleFactors {
   double counts_per_deg = 7.8;       // pitch, roll and their rates, yaw rate (per deg/s)
   double counts_per_mps = 332.0;     // wheel velocity
@@ -50,7 +50,7 @@ enum class DropReason : std::uint8_t {
 struct Config {
   Model model = Model::kRmp200;
   msg::SourceId source_id = 0;
-  // The RMP's yaw sign convention is unverified (PROTOCOLS.md 1.8): +1 keeps the frames' sign,
+  // The RMP's yaw sign convention is unverified (docs/protocols.md 1.8): +1 keeps the frames' sign,
   // -1 flips yaw rate and integrated yaw so that counter-clockwise is positive on this robot.
   int yaw_sign = 1;
 };
@@ -102,8 +102,8 @@ class Decoder {
 
 // --- encoders (host -> RMP, and a simulated base's status frames)
 
-// 0x413: velocity and turn demand in counts (clamped to the limits of PROTOCOLS.md 1.6), with an
-// optional configuration command (id 0 = none) and parameter.
+// 0x413: velocity and turn demand in counts (clamped to the limits of docs/protocols.md 1.6), with
+// an optional configuration command (id 0 = none) and parameter.
 [[nodiscard]] CanFrame encode_command(std::int16_t velocity_counts, std::int16_t turn_counts,
                                       std::uint16_t config_id = 0,
                                       std::uint16_t config_value = 0) noexcept;

@@ -1,4 +1,4 @@
-// SICK CoLa codec (TiM5xx/7xx, LMS1xx, LMS5xx over TCP or USB; docs/PROTOCOLS.md section 3):
+// SICK CoLa codec (TiM5xx/7xx, LMS1xx, LMS5xx over TCP or USB; docs/protocols.md section 3):
 // telegrams in CoLa A (ASCII, `02 ... 03`) or CoLa B (binary, `02 02 02 02` + u32 BE length +
 // body + XOR) framing in, generic telegrams and LMDscandata scans (msg::LaserScan) out; and the
 // host's commands, plus whole scan telegrams for a simulated scanner, encoded into caller buffers.
@@ -57,8 +57,8 @@ struct Config {
   std::size_t telegram_capacity_bytes = kDefaultTelegramCapacityBytes;
   msg::SourceId source_id = 0;
   // A beam whose RSSI is 0 is "no echo" even when its distance is not 0 (TiM7xx sends 2 mm with
-  // RSSI 0). PROTOCOLS.md 3.5 marks this [UNVERIFIED]; in all five real captures every beam with
-  // RSSI 0 has distance 0 or 2.
+  // RSSI 0). docs/protocols.md 3.5 marks this [UNVERIFIED]; in all five real captures every beam
+  // with RSSI 0 has distance 0 or 2.
   bool rssi_zero_is_no_return = true;
   // The model's range limits, copied into each LaserScan (the telegram does not carry them).
   // When range_min_m > 0, shorter returns are BeamStatus::kTooClose. 0 means unknown.
@@ -78,7 +78,7 @@ struct Telegram {
   TimestampNs stamp_ns = 0;        // receive time of the chunk that held its first STX
 };
 
-// One channel block of an LMDscandata telegram, as sent (PROTOCOLS.md 3.4).
+// One channel block of an LMDscandata telegram, as sent (docs/protocols.md 3.4).
 struct ScanChannel {
   std::array<char, 6> name{};  // "DIST1", "RSSI1", NUL-terminated
   std::uint8_t bits = 0;       // 16 or 8
@@ -96,7 +96,7 @@ struct DeviceTime {
   std::uint32_t microsecond = 0;
 };
 
-// The LMDscandata fields a LaserScan does not carry (PROTOCOLS.md 3.4, in telegram order).
+// The LMDscandata fields a LaserScan does not carry (docs/protocols.md 3.4, in telegram order).
 struct ScanInfo {
   std::uint16_t version = 0;
   std::uint16_t device_number = 0;
@@ -236,7 +236,7 @@ class StaticDecoder : private blockmap::detail::InlineStorage<std::uint8_t, N>, 
 // --- encoding (every function writes one whole frame into `out` and returns its length, or 0
 // when `out` is too small or the input cannot be encoded; nothing allocates)
 
-// CoLa B checksum: XOR of the body (PROTOCOLS.md 3.2 [solid]).
+// CoLa B checksum: XOR of the body (docs/protocols.md 3.2 [solid]).
 [[nodiscard]] std::uint8_t checksum(std::span<const std::uint8_t> body) noexcept;
 
 // Frames a body ("sMN Run", or "sEN LMDscandata " + binary 01) as it goes on the wire.
@@ -281,14 +281,14 @@ class TelegramWriter {
   bool overflow_ = false;
 };
 
-// SetAccessMode levels and password hashes used by the public drivers (PROTOCOLS.md 3.3:
+// SetAccessMode levels and password hashes used by the public drivers (docs/protocols.md 3.3:
 // `sMN SetAccessMode 03 F4724744` [S11][S14][S15]).
 inline constexpr std::uint8_t kAccessLevelAuthorizedClient = 3;
 inline constexpr std::uint32_t kAuthorizedClientPasswordHash = 0xF4724744;
 
 // sWN LMDscandatacfg: what each scan telegram carries. The field layout is read from one real
-// CoLa B frame (S14 TiM5xx start-up log) and one CoLa A driver (S15 LMS1xx.cpp); PROTOCOLS.md 3.3
-// lists the fields without widths, so treat the layout as [single].
+// CoLa B frame (S14 TiM5xx start-up log) and one CoLa A driver (S15 LMS1xx.cpp);
+// docs/protocols.md 3.3 lists the fields without widths, so treat the layout as [single].
 struct ScanDataConfig {
   std::uint8_t output_channel = 1;  // bit mask of echoes: 1 = first echo only
   bool rssi = true;                 // "remission"

@@ -1,4 +1,4 @@
-// SICK LMS 200 / 291 serial telegram codec (docs/PROTOCOLS.md section 2): scanner bytes in,
+// SICK LMS 200 / 291 serial telegram codec (docs/protocols.md section 2): scanner bytes in,
 // ACK/NAK events, reply telegrams and LaserScans out; request telegrams (and, for a simulated
 // scanner, reply and measured-values telegrams) encoded into caller-provided buffers.
 //
@@ -26,7 +26,7 @@
 
 namespace blockmap::hal::protocol::sick_lms2xx {
 
-// --- framing constants (PROTOCOLS.md 2.2, 2.4)
+// --- framing constants (docs/protocols.md 2.2, 2.4)
 
 inline constexpr std::uint8_t kStx = 0x02;
 inline constexpr std::uint8_t kAckByte = 0x06;
@@ -39,7 +39,7 @@ inline constexpr std::size_t kMaxBodyBytes = kMaxTelegramBytes - kFrameOverheadB
 // Enough for every named request encoder below (the longest, installation mode, is 16 bytes).
 inline constexpr std::size_t kRequestBufferBytes = 16;
 
-// Command bytes (PROTOCOLS.md 2.5); a reply's command is the request's + 0x80 (2.2).
+// Command bytes (docs/protocols.md 2.5); a reply's command is the request's + 0x80 (2.2).
 namespace command {
 inline constexpr std::uint8_t kReset = 0x10;
 inline constexpr std::uint8_t kSwitchMode = 0x20;
@@ -63,7 +63,7 @@ inline constexpr std::uint8_t kConfigurationReply = 0xF4;
 inline constexpr std::uint8_t kWriteConfigurationReply = 0xF7;
 }  // namespace command
 
-// Mode bytes after 20 (PROTOCOLS.md 2.5).
+// Mode bytes after 20 (docs/protocols.md 2.5).
 namespace mode {
 inline constexpr std::uint8_t kInstallation = 0x00;
 inline constexpr std::uint8_t kContinuousAllValues = 0x24;
@@ -76,7 +76,7 @@ inline constexpr std::uint8_t kBaud500000 = 0x48;
 
 inline constexpr std::string_view kDefaultPassword = "SICK_LMS";
 
-// --- the measured values (PROTOCOLS.md 2.6, 2.8)
+// --- the measured values (docs/protocols.md 2.6, 2.8)
 
 // Count word bits 14-15.
 enum class Units : std::uint8_t { kCm = 0, kMm = 1 };
@@ -101,21 +101,21 @@ struct VariantGeometry {
 // The variant whose value count is `count`; none for other counts.
 [[nodiscard]] std::optional<AngularVariant> variant_from_count(std::size_t count) noexcept;
 
-// Range bits of a measuring mode (configuration byte 5, PROTOCOLS.md 2.5/2.6): modes 00-02 ->
+// Range bits of a measuring mode (configuration byte 5, docs/protocols.md 2.5/2.6): modes 00-02 ->
 // 13, 03-05 -> 14, 06 -> 15; none for the other modes (0F, 3F reflectivity, unknown).
 [[nodiscard]] std::optional<std::uint8_t> range_bits_of_measuring_mode(std::uint8_t mode) noexcept;
 
 // The nominal measuring range: 8 / 16 / 32 m for 13 / 14 / 15 range bits with mm units, ten
-// times that with cm units (PROTOCOLS.md 2.5 "8 m vs 80 m follows the unit"). `range_bits` must
-// be 13, 14 or 15 (CHECK).
+// times that with cm units (docs/protocols.md 2.5 "8 m vs 80 m follows the unit"). `range_bits`
+// must be 13, 14 or 15 (CHECK).
 [[nodiscard]] double range_max_m(Units units, std::uint8_t range_bits);
 
-// The status byte's health (PROTOCOLS.md 2.7): bits 0-2 give the severity; pollution (0x80) and
-// implausible values (0x40) raise it to at least a warning, a restart (0x20) to at least info.
+// The status byte's health (docs/protocols.md 2.7): bits 0-2 give the severity; pollution (0x80)
+// and implausible values (0x40) raise it to at least a warning, a restart (0x20) to at least info.
 // Bit 4 (0x10), set in every real reply, is not an error.
 [[nodiscard]] msg::DeviceSeverity severity_of_status(std::uint8_t status) noexcept;
 
-// --- CRC (PROTOCOLS.md 2.3)
+// --- CRC (docs/protocols.md 2.3)
 
 // Over STX up to the last byte before the CRC; appended low byte first.
 [[nodiscard]] std::uint16_t crc16(std::span<const std::uint8_t> bytes) noexcept;
@@ -143,7 +143,7 @@ struct VariantGeometry {
     std::span<std::uint8_t> out) noexcept;  // 20 25
 // The mode byte of a baud rate: 9600, 19200, 38400, 500000 (RS-422 only); none for others.
 [[nodiscard]] std::optional<std::uint8_t> baud_mode(std::uint32_t baud_bps) noexcept;
-// 20 40/41/42/48; 0 for an unsupported rate. Send at the old rate (PROTOCOLS.md 2.4).
+// 20 40/41/42/48; 0 for an unsupported rate. Send at the old rate (docs/protocols.md 2.4).
 [[nodiscard]] std::size_t encode_set_baud(std::span<std::uint8_t> out,
                                           std::uint32_t baud_bps) noexcept;
 // 3B angle_lo angle_hi res_lo res_hi.
@@ -252,7 +252,7 @@ class Decoder {
   [[nodiscard]] std::uint64_t telegrams_decoded() const noexcept { return telegrams_.value(); }
   [[nodiscard]] std::uint64_t scans_decoded() const noexcept { return scans_.value(); }
   [[nodiscard]] std::uint64_t acks() const noexcept { return acks_.value(); }
-  // NAK bytes (15): the scanner refused a request (bad CRC or format, PROTOCOLS.md 2.4).
+  // NAK bytes (15): the scanner refused a request (bad CRC or format, docs/protocols.md 2.4).
   [[nodiscard]] std::uint64_t naks() const noexcept { return naks_.value(); }
 
  private:

@@ -30,7 +30,7 @@ struct Mount {
 
 struct BaseSpec {
   protocol::segway_rmp::Model model = protocol::segway_rmp::Model::kRmp200;
-  int yaw_sign = 1;  // as the device layer will be configured (PROTOCOLS.md 1.8)
+  int yaw_sign = 1;  // as the device layer will be configured (docs/protocols.md 1.8)
   double track_m = 0.54;
   double wheel_radius_m = 0.24;
   // Driving: how the base follows the path.
@@ -57,7 +57,7 @@ struct BaseSpec {
 };
 
 // The LMS2xx's mirror turns at 75 Hz; a scan at 0.5 deg interlaces two turns, at 0.25 deg four
-// (PROTOCOLS.md 2.1).
+// (docs/protocols.md 2.1).
 inline constexpr double kLms2xxMirrorRateHz = 75.0;
 [[nodiscard]] int mirror_turns_per_scan(protocol::sick_lms2xx::AngularVariant variant) noexcept;
 

@@ -1,4 +1,4 @@
-// Records a simulated run as a robot's logger would, into a folder (ARCHITECTURE.md 4.4, 4.5):
+// Records a simulated run as a robot's logger would, into a folder (docs/log-formats.md):
 //   rmp.candump               CAN traffic in can-utils' candump log format (interface can0)
 //   laser_<name>.bytelog      each laser's serial bytes with receive times (docs/log-formats.md)
 //   gps.nmea                  the GPS receiver's raw NMEA byte stream
