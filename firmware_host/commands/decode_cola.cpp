@@ -18,6 +18,7 @@
 #include <utility>
 #include <vector>
 
+#include "blockmap/core/angles.hpp"
 #include "blockmap/hal/protocol/sick_cola.hpp"
 #include "cli.hpp"
 #include "commands/decoders.hpp"
@@ -26,8 +27,6 @@ namespace blockmap::cli {
 namespace {
 
 namespace cola = hal::protocol::sick_cola;
-
-constexpr double kDegreesPerRadian = 180.0 / std::numbers::pi;
 
 bool looks_like_json(const std::vector<std::uint8_t>& bytes) {
   for (const std::uint8_t byte : bytes) {

@@ -30,6 +30,7 @@
 #include <string>
 #include <vector>
 
+#include "blockmap/core/angles.hpp"
 #include "blockmap/hal/config/config_error.hpp"
 #include "blockmap/hal/geodesy.hpp"
 #include "blockmap/hal/protocol/byte_log.hpp"
@@ -148,7 +149,7 @@ Reference read_reference(const std::string& path) {
     if (!reference.poses.empty()) {
       // Unwrap: the heading turns by far less than pi between rows.
       const double previous = reference.poses.back().yaw_rad;
-      pose.yaw_rad = previous + std::remainder(pose.yaw_rad - previous, 2.0 * std::numbers::pi);
+      pose.yaw_rad = previous + wrap_angle(pose.yaw_rad - previous);
     }
     reference.poses.push_back(pose);
   }
@@ -178,7 +179,7 @@ class TrueMotion {
     hal::sim::RobotState state;
     state.t_s = t_s;
     state.position_m = Eigen::Vector3d(now.x_m, now.y_m, 0.0);
-    state.yaw_rad = std::remainder(now.yaw_rad, 2.0 * std::numbers::pi);
+    state.yaw_rad = wrap_angle(now.yaw_rad);
     const double speed = dt > 0.0 ? ds / dt : 0.0;
     state.accel_mps2 = dt > 0.0 ? (speed - speed_mps_) / dt : 0.0;
     state.speed_mps = speed;

@@ -185,6 +185,7 @@ void MappingSession::report(std::ostream& err, double data_s) const {
   }
   if (mapper_.rigid_path_on()) {
     const localize::PathSmootherCounters& p = mapper_.rigid_path().counters();
+    const pipeline::RigidPathCounters rigid = mapper_.rigid_path_counters();
     std::snprintf(
         text, sizeof text,
         "rigid path: %zu keyframes (%llu thinnings), %llu fixes, %zu ties between passes "
@@ -195,9 +196,9 @@ void MappingSession::report(std::ostream& err, double data_s) const {
         static_cast<unsigned long long>(p.fixes), mapper_.rigid_path().tie_count(),
         static_cast<unsigned long long>(p.ties_dropped),
         static_cast<unsigned long long>(p.ties_replaced), static_cast<unsigned long long>(p.solves),
-        static_cast<unsigned long long>(c.planes_moved),
+        static_cast<unsigned long long>(rigid.planes_moved),
         static_cast<unsigned long long>(mapper_.registry().counters().view_moved),
-        static_cast<unsigned long long>(c.rigid_path_fixes_dropped));
+        static_cast<unsigned long long>(rigid.fixes_dropped));
     err << text;
   }
   // Each capacity against the most it held, for sizing a robot's config (config/README.md).

@@ -10,6 +10,8 @@
 #include <utility>
 #include <vector>
 
+#include "blockmap/core/angles.hpp"
+
 namespace blockmap::cli {
 namespace {
 
@@ -21,9 +23,8 @@ struct Camera {
 };
 
 Camera camera_for(const PictureView& view) {
-  constexpr double kDegToRad = std::numbers::pi / 180.0;
-  const double azimuth = view.azimuth_deg * kDegToRad;
-  const double elevation = view.elevation_deg * kDegToRad;
+  const double azimuth = view.azimuth_deg * kRadiansPerDegree;
+  const double elevation = view.elevation_deg * kRadiansPerDegree;
   const Eigen::Vector3d towards(std::cos(elevation) * std::cos(azimuth),
                                 std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
   // Horizontal, to the viewer's right (also when looking straight down).

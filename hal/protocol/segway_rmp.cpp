@@ -1,6 +1,7 @@
 // Segway RMP status frames (docs/protocols.md 1.3-1.5): 16-bit fields big-endian, 32-bit fields
 // low word first with each word big-endian.
 #include "blockmap/hal/protocol/segway_rmp.hpp"
+#include "blockmap/core/angles.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -11,7 +12,6 @@
 namespace blockmap::hal::protocol::segway_rmp {
 namespace {
 
-constexpr double kRadiansPerDegree = std::numbers::pi / 180.0;
 constexpr std::uint8_t kAllStatusFrames = 0x7E;  // 0x401..0x406
 
 // Slot n = bytes 2n..2n+1, big-endian (docs/protocols.md 1.3).

@@ -3,6 +3,7 @@
 // binary, CoLa A hex tokens), so that the hot loops are inlined with no virtual calls; one writer
 // for both dialects behind the encoders.
 #include "blockmap/hal/protocol/sick_cola.hpp"
+#include "blockmap/core/angles.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -24,7 +25,6 @@ constexpr std::size_t kColaBHeaderBytes = 8;  // 02 02 02 02 + u32 BE length (do
 constexpr std::size_t kColaBOverheadBytes = 9;  // the header and the XOR byte after the body
 constexpr std::size_t kMaxColaBBodyBytes = 0x7FFFFFFF;  // what a u32 length holds on every target
 constexpr double kDegreesPerAngleUnit = 1e-4;  // LMDscandata angles are 1/10000 degree (3.4)
-constexpr double kRadiansPerDegree = std::numbers::pi / 180.0;
 constexpr double kMetresPerMillimetre = 1e-3;
 // SICK numbers its beams with 90 degrees straight ahead: a TiM5xx/7xx or LMS1xx scans -45..225,
 // an LMS5xx -5..185, counter-clockwise seen from above. msg::LaserScan wants x forward, y left,

@@ -1,6 +1,7 @@
 // SICK LMS 200 / 291 telegram codec (docs/protocols.md section 2). One byte-at-a-time state
 // machine frames telegrams; small functions encode requests and read the B0 measured values.
 #include "blockmap/hal/protocol/sick_lms2xx.hpp"
+#include "blockmap/core/angles.hpp"
 
 #include <algorithm>
 #include <array>
@@ -49,8 +50,6 @@ constexpr std::array<VariantGeometry, 5> kGeometries = {{
 // The largest B0 fits a LaserScan: 401 values in an 812-byte telegram (2.6 sizes).
 static_assert((kMaxBodyBytes - 1 - kCountWordBytes - 1) / 2 == 401);
 static_assert(401 <= msg::kMaxLaserBeams);
-
-constexpr double kRadiansPerDegree = std::numbers::pi / 180.0;
 
 std::uint16_t range_mask_of(std::uint8_t range_bits) {
   BLOCKMAP_CHECK_MSG(range_bits >= 13 && range_bits <= 15,

@@ -6,17 +6,12 @@
 #include <limits>
 #include <numbers>
 
+#include "blockmap/core/angles.hpp"
 #include "blockmap/core/check.hpp"
 #include "blockmap/localize/localizer.hpp"
 
 namespace blockmap::hal::sim {
-namespace {
-
-double wrap_angle(double angle) {
-  return std::remainder(angle, 2.0 * std::numbers::pi);
-}
-
-}  // namespace
+namespace {}  // namespace
 
 Eigen::Matrix3d RobotState::rotation() const {
   return localize::attitude_rotation(roll_rad, pitch_rad, yaw_rad);

@@ -1,5 +1,6 @@
 // Robot files (config/robots/*.toml) -> RobotSpec. The keys are listed in config/README.md.
 #include "blockmap/hal/sim/robot.hpp"
+#include "blockmap/core/angles.hpp"
 
 #include <cmath>
 #include <numbers>
@@ -15,10 +16,8 @@ namespace {
 using config::TableReader;
 namespace lms = protocol::sick_lms2xx;
 
-constexpr double kRadPerDeg = std::numbers::pi / 180.0;
-
 double degrees_or(TableReader& table, std::string_view key, double fallback_rad) {
-  return table.number_or(key, fallback_rad / kRadPerDeg) * kRadPerDeg;
+  return table.number_or(key, fallback_rad / kRadiansPerDegree) * kRadiansPerDegree;
 }
 
 Mount parse_mount(TableReader& table) {

@@ -10,14 +10,13 @@
 #include <cmath>
 #include <numbers>
 
+#include "blockmap/core/angles.hpp"
 #include "sim_devices.hpp"
 
 namespace blockmap::hal::sim::detail {
 namespace {
 
 namespace nmea = protocol::nmea;
-
-constexpr double kRadPerDeg = std::numbers::pi / 180.0;
 
 // Distance along the 2D ray p + t * direction to the first crossing of the polygon's boundary.
 double first_crossing(const std::vector<Vec2>& polygon, const Vec2& p, const Vec2& direction) {
@@ -50,7 +49,7 @@ SimGps::SimGps(const GpsSpec& spec, const Site& site, std::size_t device, std::u
       wire_(spec.baud, static_cast<TimestampNs>(spec.read_interval_s * 1e9), 2048),
       error_(spec) {
   // The constellation: uniform in azimuth, uniform in the sine of the elevation above the mask.
-  const double mask = spec.elevation_mask_deg * kRadPerDeg;
+  const double mask = spec.elevation_mask_deg * kRadiansPerDegree;
   for (int i = 0; i < spec.satellites; ++i) {
     Satellite satellite;
     satellite.azimuth_rad = random_.uniform(0.0, 2.0 * std::numbers::pi);
@@ -151,7 +150,7 @@ void SimGps::make_epoch(SimContext& context, SimSink& sink, SimStats& stats) {
     fix.has_velocity = true;
     fix.speed_mps = speed;
     fix.has_course = speed > 0.2;
-    double course = 90.0 - state.yaw_rad / kRadPerDeg + random_.gaussian(1.0);
+    double course = 90.0 - state.yaw_rad / kRadiansPerDegree + random_.gaussian(1.0);
     fix.course_deg = std::fmod(std::fmod(course, 360.0) + 360.0, 360.0);
   }
   gsa.fix_type = truth.fix ? 3 : 1;

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "blockmap/core/angles.hpp"
 #include "sim_devices.hpp"
 
 namespace blockmap::hal::sim::detail {
@@ -126,7 +127,7 @@ void SimLms::measure_scan(SimContext& context, SimSink& sink, SimStats& stats) {
                            (rotation_first.col(2) + rotation_last.col(2)).normalized(),
                            range_max_m_ + margin, 0.5 * (start_s + end_s));
 
-  const double field_rad = geometry_.field_deg * std::numbers::pi / 180.0;
+  const double field_rad = radians_from_degrees(geometry_.field_deg);
   const double start_angle = -field_rad / 2.0;
   const double span_s = end_s - start_s;
   BeamTruth truth;

@@ -1,5 +1,6 @@
 // World files (config/worlds/*.toml) -> World. The keys are listed in config/README.md.
 #include "blockmap/hal/sim/world.hpp"
+#include "blockmap/core/angles.hpp"
 
 #include <Eigen/Geometry>
 #include <cmath>
@@ -13,8 +14,6 @@ namespace blockmap::hal::sim {
 namespace {
 
 using config::TableReader;
-
-constexpr double kRadPerDeg = std::numbers::pi / 180.0;
 
 std::vector<Vec2> shape_vertices(const FootprintParameters& p) {
   const double hl = p.length_m / 2.0;
@@ -87,7 +86,7 @@ Building parse_building(TableReader& table, int default_id) {
     p.stem_width_m = table.number("stem_width_m");
   }
   const Vec2 centre = table.vec2("centre_m");
-  const double yaw_rad = table.number_or("yaw_deg", 0.0) * kRadPerDeg;
+  const double yaw_rad = table.number_or("yaw_deg", 0.0) * kRadiansPerDegree;
   building.height_m = table.positive("height_m", table.number("height_m"));
   try {
     building.footprint_m = make_footprint(p, centre, yaw_rad);
@@ -120,7 +119,7 @@ Bush parse_bush_parameters(TableReader& table) {
 
 Car parse_car_parameters(TableReader& table) {
   Car car;
-  car.yaw_rad = table.number_or("yaw_deg", 0.0) * kRadPerDeg;
+  car.yaw_rad = table.number_or("yaw_deg", 0.0) * kRadiansPerDegree;
   car.length_m = table.positive_or("length_m", car.length_m);
   car.width_m = table.positive_or("width_m", car.width_m);
   car.height_m = table.positive_or("height_m", car.height_m);

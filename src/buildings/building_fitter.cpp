@@ -6,12 +6,12 @@
 #include <numbers>
 #include <numeric>
 
+#include "blockmap/core/angles.hpp"
 #include "blockmap/planes/polygon.hpp"
 
 namespace blockmap::buildings {
 namespace {
 
-constexpr double kRadPerDeg = std::numbers::pi / 180.0;
 // Observed walls and model edges are compared at points this far apart.
 constexpr double kSampleStepM = 0.25;
 // Intervals of one footprint edge kept while its walls are laid out.
@@ -27,7 +27,7 @@ double cross(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
 // The angle between two undirected lines, 0-90 degrees.
 double line_angle_deg(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
   const double c = std::abs(a.normalized().dot(b.normalized()));
-  return std::acos(std::min(1.0, c)) / kRadPerDeg;
+  return std::acos(std::min(1.0, c)) / kRadiansPerDegree;
 }
 
 Eigen::Vector2d to_frame(const Eigen::Vector2d& p, double axis_rad) {

@@ -7,6 +7,7 @@
 
 #include <Eigen/Geometry>
 
+#include "blockmap/core/angles.hpp"
 #include "blockmap/core/check.hpp"
 
 namespace blockmap::localize {
@@ -174,14 +175,6 @@ void Localizer::follow_height(const GpsObservation& fix, double height_m) noexce
   last_height_ns_ = fix.stamp_ns;
 }
 
-namespace {
-
-double wrapped(double angle_rad) noexcept {
-  return std::remainder(angle_rad, 2.0 * std::numbers::pi);
-}
-
-}  // namespace
-
 void Localizer::advance_lagged_map_pose(TimestampNs until_ns) noexcept {
   while (lagged_count_ > 0 && lagged_[lagged_first_].stamp_ns <= until_ns) {
     advance_lagged_one();
@@ -231,18 +224,18 @@ void Localizer::advance_map_pose(const BaseMotion& motion) noexcept {
   const double travel_m = motion.distance_m * distance_scale_;
   map_pose_.x_m += travel_m * std::cos(heading_rad);
   map_pose_.y_m += travel_m * std::sin(heading_rad);
-  map_pose_.yaw_rad = wrapped(map_pose_.yaw_rad + turn_rad);
+  map_pose_.yaw_rad = wrap_angle(map_pose_.yaw_rad + turn_rad);
   const double odometry_heading_rad = odometry_pose_.yaw_rad + 0.5 * turn_rad;
   odometry_pose_.x_m += travel_m * std::cos(odometry_heading_rad);
   odometry_pose_.y_m += travel_m * std::sin(odometry_heading_rad);
-  odometry_pose_.yaw_rad = wrapped(odometry_pose_.yaw_rad + turn_rad);
+  odometry_pose_.yaw_rad = wrap_angle(odometry_pose_.yaw_rad + turn_rad);
   // The share of the correction due in dt (an exponential approach to the estimate).
   const double smoothing_s = carrier_phase_holds(motion.stamp_ns) ? config_.rtk_map_pose_smoothing_s
                                                                   : config_.map_pose_smoothing_s;
   const double share = smoothing_s > 0.0 ? std::min(1.0, dt_s / smoothing_s) : 1.0;
   map_pose_.x_m += share * pending_x_m_;
   map_pose_.y_m += share * pending_y_m_;
-  map_pose_.yaw_rad = wrapped(map_pose_.yaw_rad + share * pending_yaw_rad_);
+  map_pose_.yaw_rad = wrap_angle(map_pose_.yaw_rad + share * pending_yaw_rad_);
   pending_x_m_ -= share * pending_x_m_;
   pending_y_m_ -= share * pending_y_m_;
   pending_yaw_rad_ -= share * pending_yaw_rad_;
@@ -259,7 +252,7 @@ void Localizer::pull_map_pose(const Pose2& target, const BaseMotion& motion) noe
   yaw_rate_bias_radps_ = filter_.mean_yaw_rate_bias_radps();
   const double gap_x_m = target.x_m - map_pose_.x_m;
   const double gap_y_m = target.y_m - map_pose_.y_m;
-  const double gap_yaw_rad = wrapped(target.yaw_rad - map_pose_.yaw_rad);
+  const double gap_yaw_rad = wrap_angle(target.yaw_rad - map_pose_.yaw_rad);
   const bool snap = !map_started_ || std::hypot(gap_x_m, gap_y_m) > config_.map_pose_snap_m ||
                     std::abs(gap_yaw_rad) > config_.map_pose_snap_rad;
   if (!snap) {
@@ -377,14 +370,14 @@ bool Localizer::map_pose_at(TimestampNs stamp_ns, Pose3& out, Pose2* odometry) c
   out.z_m = a.z_m + f * (b.z_m - a.z_m);
   out.roll_rad = a.roll_rad + f * (b.roll_rad - a.roll_rad);
   out.pitch_rad = a.pitch_rad + f * (b.pitch_rad - a.pitch_rad);
-  out.yaw_rad = wrapped(a.yaw_rad + f * wrapped(b.yaw_rad - a.yaw_rad));
+  out.yaw_rad = wrap_angle(a.yaw_rad + f * wrap_angle(b.yaw_rad - a.yaw_rad));
   if (odometry != nullptr) {
     const Pose2& oa = odometry_poses_[(map_first_ + low) % map_poses_.size()];
     const Pose2& ob = odometry_poses_[(map_first_ + low + 1) % map_poses_.size()];
     odometry->stamp_ns = stamp_ns;
     odometry->x_m = oa.x_m + f * (ob.x_m - oa.x_m);
     odometry->y_m = oa.y_m + f * (ob.y_m - oa.y_m);
-    odometry->yaw_rad = wrapped(oa.yaw_rad + f * wrapped(ob.yaw_rad - oa.yaw_rad));
+    odometry->yaw_rad = wrap_angle(oa.yaw_rad + f * wrap_angle(ob.yaw_rad - oa.yaw_rad));
   }
   return true;
 }

@@ -6,6 +6,7 @@
 #include <numbers>
 #include <utility>
 
+#include "blockmap/core/angles.hpp"
 #include "blockmap/core/check.hpp"
 
 namespace blockmap::localize {
@@ -29,10 +30,6 @@ double normal_quantile(double p) noexcept {
     }
   }
   return 0.5 * (low + high);
-}
-
-double wrap_angle(double angle_rad) noexcept {
-  return std::remainder(angle_rad, 2.0 * std::numbers::pi);
 }
 
 // Turns below this take the rotation by series (error below 1e-12 per step); larger ones
@@ -739,11 +736,6 @@ ParticleFilter::PositionStats ParticleFilter::weighted_stats(const X& x_at,
   return stats;
 }
 
-ParticleFilter::PositionStats ParticleFilter::position_stats() const noexcept {
-  return weighted_stats([&](std::size_t i) { return x_m_[i]; },
-                        [&](std::size_t i) { return y_m_[i]; });
-}
-
 ParticleFilter::PositionStats ParticleFilter::expected_fix_stats(
     const GpsObservation& fix) const noexcept {
   return weighted_stats(
@@ -761,10 +753,6 @@ double ParticleFilter::heading_spread_rad() const noexcept {
   const double resultant = std::hypot(cos_sum, sin_sum);
   return resultant > 0.0 ? std::sqrt(-2.0 * std::log(std::min(resultant, 1.0)))
                          : std::numeric_limits<double>::infinity();
-}
-
-double ParticleFilter::position_spread_m() const noexcept {
-  return position_stats().spread_m;
 }
 
 double ParticleFilter::mean_distance_scale() const noexcept {

@@ -8,6 +8,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 
+#include "blockmap/core/angles.hpp"
 #include "blockmap/core/check.hpp"
 
 namespace blockmap::localize {
@@ -34,10 +35,6 @@ constexpr double kMinBiasDecay = 1e-6;
 // Added to every diagonal: the path without a single fix has no place of its own.
 constexpr double kDamping = 1e-9;
 
-double wrap(double angle_rad) noexcept {
-  return std::remainder(angle_rad, 2.0 * std::numbers::pi);
-}
-
 bool positive(double value) noexcept {
   return std::isfinite(value) && value > 0.0;
 }
@@ -56,7 +53,7 @@ Eigen::Vector3d relative_motion(const Pose2& from, const Pose2& to) noexcept {
   const double s = std::sin(from.yaw_rad);
   const double dx = to.x_m - from.x_m;
   const double dy = to.y_m - from.y_m;
-  return {c * dx + s * dy, -s * dx + c * dy, wrap(to.yaw_rad - from.yaw_rad)};
+  return {c * dx + s * dy, -s * dx + c * dy, wrap_angle(to.yaw_rad - from.yaw_rad)};
 }
 
 }  // namespace
@@ -184,7 +181,7 @@ void PathSmoother::append(const Pose2& odometry, const Pose2& drawn) noexcept {
     const double s = std::sin(before.state[kYaw]);
     next.state[kX] = before.state[kX] + c * motion.x() - s * motion.y();
     next.state[kY] = before.state[kY] + s * motion.x() + c * motion.y();
-    next.state[kYaw] = wrap(before.state[kYaw] + motion.z());
+    next.state[kYaw] = wrap_angle(before.state[kYaw] + motion.z());
     const double decay = std::exp(-seconds_from_ns(odometry.stamp_ns - before.odometry.stamp_ns) /
                                   config_.bias_time_s);
     next.state[kBiasX] = decay * before.state[kBiasX];
@@ -230,7 +227,7 @@ void PathSmoother::accumulate_motion(std::size_t i) noexcept {
   const double dx = b.state[kX] - a.state[kX];
   const double dy = b.state[kY] - a.state[kY];
   const Eigen::Vector3d residual(c * dx + s * dy - measured.x(), -s * dx + c * dy - measured.y(),
-                                 wrap(b.state[kYaw] - a.state[kYaw] - measured.z()));
+                                 wrap_angle(b.state[kYaw] - a.state[kYaw] - measured.z()));
   const Eigen::Vector3d information(
       1.0 / (config_.along_sigma_per_sqrt_m * config_.along_sigma_per_sqrt_m * distance_m +
              kMinMotionVarianceM2),
@@ -429,7 +426,7 @@ void PathSmoother::linearize_tie(Tie& tie) const noexcept {
   // Offset: the later look's point from the earlier look's plane; turn: between the normals.
   tie.residual[0] = a.normal.dot(apart_m);
   tie.residual[1] =
-      wrap(std::atan2(b.normal.y(), b.normal.x()) - std::atan2(a.normal.y(), a.normal.x()));
+      wrap_angle(std::atan2(b.normal.y(), b.normal.x()) - std::atan2(a.normal.y(), a.normal.x()));
   tie.jacobian_a[0] = -a.normal.x();
   tie.jacobian_a[1] = -a.normal.y();
   tie.jacobian_a[2] = perpendicular(a.normal).dot(apart_m) - a.normal.dot(perpendicular(a.lever_m));
@@ -443,10 +440,10 @@ void PathSmoother::linearize_tie(Tie& tie) const noexcept {
   tie.jacobian_b[4] = 0.0;
   tie.jacobian_b[5] = 1.0;
   const double sigmas[2] = {config_.tie_offset_sigma_m,
-                            config_.tie_angle_sigma_deg * std::numbers::pi / 180.0};
+                            radians_from_degrees(config_.tie_angle_sigma_deg)};
   // Looks whose walls turn apart by more than the gate once moved were not drawn with
   // these keyframes' poses (a filter still settling drew one): the tie is left out.
-  const bool gated = std::abs(tie.residual[1]) > config_.tie_gate_deg * std::numbers::pi / 180.0;
+  const bool gated = std::abs(tie.residual[1]) > radians_from_degrees(config_.tie_gate_deg);
   for (int r = 0; r < 2; ++r) {
     if (gated) {
       tie.weight[r] = 0.0;
@@ -641,7 +638,7 @@ void PathSmoother::solve() noexcept {
       for (int k = 0; k < 5; ++k) {
         keyframes_[i].state[k] += blocks_[i].step[k];
       }
-      keyframes_[i].state[kYaw] = wrap(keyframes_[i].state[kYaw]);
+      keyframes_[i].state[kYaw] = wrap_angle(keyframes_[i].state[kYaw]);
     }
   }
 }
@@ -666,11 +663,6 @@ PlanarCorrection PathSmoother::correction(std::size_t i) const noexcept {
   return motion_between(drawn(i), pose(i));
 }
 
-Eigen::Vector2d PathSmoother::receiver_error_m(std::size_t i) const noexcept {
-  BLOCKMAP_CHECK(i < count_);
-  return {keyframes_[i].state[kBiasX], keyframes_[i].state[kBiasY]};
-}
-
 Pose2 PathSmoother::pose_at(TimestampNs stamp_ns) const noexcept {
   BLOCKMAP_CHECK_MSG(count_ > 0, "pose_at() before the first keyframe");
   const auto first = keyframes_.begin();
@@ -691,7 +683,7 @@ Pose2 PathSmoother::pose_at(TimestampNs stamp_ns) const noexcept {
   const double f =
       static_cast<double>(stamp_ns - a.stamp_ns) / static_cast<double>(b.stamp_ns - a.stamp_ns);
   return Pose2{stamp_ns, a.x_m + f * (b.x_m - a.x_m), a.y_m + f * (b.y_m - a.y_m),
-               wrap(a.yaw_rad + f * wrap(b.yaw_rad - a.yaw_rad))};
+               wrap_angle(a.yaw_rad + f * wrap_angle(b.yaw_rad - a.yaw_rad))};
 }
 
 }  // namespace blockmap::localize

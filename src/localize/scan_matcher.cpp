@@ -7,6 +7,7 @@
 
 #include <Eigen/Cholesky>
 
+#include "blockmap/core/angles.hpp"
 #include "blockmap/core/check.hpp"
 #include "blockmap/core/floor_div.hpp"
 
@@ -22,10 +23,6 @@ constexpr double kOnMapValue = 0.25;
 // The prior's weight on yaw is its weight on position times this lever squared: a turn of a
 // radian moves a return this far from the robot by as many metres.
 constexpr double kPriorLeverM = 10.0;
-
-double wrap_angle(double angle_rad) noexcept {
-  return std::remainder(angle_rad, 2.0 * std::numbers::pi);
-}
 
 std::int64_t cell_of(double coordinate_m, double inverse_cell_m) noexcept {
   return static_cast<std::int64_t>(std::floor(coordinate_m * inverse_cell_m));

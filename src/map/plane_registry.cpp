@@ -5,13 +5,12 @@
 #include <limits>
 #include <numbers>
 
+#include "blockmap/core/angles.hpp"
 #include "blockmap/core/check.hpp"
 #include "blockmap/planes/polygon.hpp"
 
 namespace blockmap::map {
 namespace {
-
-constexpr double kDegree = std::numbers::pi / 180.0;
 
 Eigen::AlignedBox3d box_of(std::span<const Eigen::Vector3d> polygon) noexcept {
   Eigen::AlignedBox3d box;
@@ -158,8 +157,8 @@ void PlaneRegistry::init(Arena& arena, const PlaneRegistryConfig& config) {
   const std::string problem = validate(config);
   BLOCKMAP_CHECK_MSG(problem.empty(), "an invalid registry configuration reached init()");
   config_ = config;
-  cos_match_angle_ = std::cos(config.match_angle_deg * kDegree);
-  cos_change_angle_ = std::cos(config.change_angle_deg * kDegree);
+  cos_match_angle_ = std::cos(config.match_angle_deg * kRadiansPerDegree);
+  cos_change_angle_ = std::cos(config.change_angle_deg * kRadiansPerDegree);
   live_ = arena.allocate_array<LivePlane>(config.max_live_planes, "registry.live");
   final_ = arena.allocate_array<msg::PlanePatch>(config.max_final_planes, "registry.final");
   final_moments_ =

@@ -1,4 +1,5 @@
 #include "blockmap/planes/corner_look.hpp"
+#include "blockmap/core/angles.hpp"
 
 #include <algorithm>
 #include <array>
@@ -10,8 +11,6 @@
 
 namespace blockmap::planes {
 namespace {
-
-constexpr double kDegToRad = std::numbers::pi / 180.0;
 
 // Where to look. The first band around the square plane is wide: in a blurred cloud a wall's
 // end, as its polygon says, is a few tenths of a metre off. Points from kBehindM behind the
@@ -86,7 +85,7 @@ CornerLook::Gathered CornerLook::gather(const Corner& corner, const Eigen::Vecto
   // The region, in the corner's axes: along its way from kBehindM back, across within the
   // band of a plane that is at most kMaxTurnDeg off square.
   const double across_half_m =
-      std::abs(offset_m) + band_m + std::sin(kMaxTurnDeg * kDegToRad) * reach_to_m;
+      std::abs(offset_m) + band_m + std::sin(kMaxTurnDeg * kRadiansPerDegree) * reach_to_m;
   const Eigen::Vector3d& c = corner.corner_m;
   Eigen::Vector2d low(std::numeric_limits<double>::infinity(),
                       std::numeric_limits<double>::infinity());
@@ -218,8 +217,8 @@ CornerLook::CornerFit CornerLook::fit_corner(const Corner& corner, double noise_
     // glimpsed through pose errors is a fan of a few scans, whose own turn is noise. Its lean
     // stays free: a fan that leans further than a wall may is not one.
     out.fit = fit_plane_along_axis(out.gathered.moments, corner.wall_normal);
-    if (!out.fit.valid ||
-        std::abs(out.fit.normal_unit.dot(corner.across)) < std::cos(kMaxTurnDeg * kDegToRad)) {
+    if (!out.fit.valid || std::abs(out.fit.normal_unit.dot(corner.across)) <
+                              std::cos(kMaxTurnDeg * kRadiansPerDegree)) {
       return out;
     }
     if (step == kFitSteps) {
@@ -238,8 +237,8 @@ CornerLook::CornerFit CornerLook::fit_corner(const Corner& corner, double noise_
     out.reach_to_m = std::min(out.reach_to_m, end_m);
   }
   const double length_m = out.gathered.reach_max_m - std::max(out.gathered.reach_min_m, 0.0);
-  out.upright =
-      std::abs(out.fit.normal_unit.z()) <= std::sin(config_.orientation_tolerance_deg * kDegToRad);
+  out.upright = std::abs(out.fit.normal_unit.z()) <=
+                std::sin(config_.orientation_tolerance_deg * kRadiansPerDegree);
   out.wall_like = length_m >= kMinLengthM && out.fit.rmse_m <= kMaxRmsPerNoise * noise_rmse_m;
   return out;
 }
@@ -311,7 +310,7 @@ CornerLook::Extent extent_along(const msg::PlanePatch& plane, const Eigen::Vecto
 
 bool CornerLook::open_corner(std::span<const msg::PlanePatch> planes,
                              Corner& corner) const noexcept {
-  const double cos_parallel = std::cos(kMaxTurnDeg * kDegToRad);
+  const double cos_parallel = std::cos(kMaxTurnDeg * kRadiansPerDegree);
   const double corner_along = corner.along.dot(corner.corner_m);
   const double corner_across = corner.across.dot(corner.corner_m);
   for (const msg::PlanePatch& plane : planes) {
@@ -341,7 +340,7 @@ bool CornerLook::open_corner(std::span<const msg::PlanePatch> planes,
 }
 
 bool CornerLook::side_near(std::span<const msg::PlanePatch> planes, const Corner& corner) noexcept {
-  const double cos_parallel = std::cos(kMaxTurnDeg * kDegToRad);
+  const double cos_parallel = std::cos(kMaxTurnDeg * kRadiansPerDegree);
   const double corner_along = corner.along.dot(corner.corner_m);
   return std::any_of(planes.begin(), planes.end(), [&](const msg::PlanePatch& plane) {
     if (plane.kind != msg::PlaneKind::kWall || plane.polygon_size == 0 ||
@@ -435,7 +434,7 @@ namespace {
 // How far either side of a corner's way its square plane's points may lie: the widest band
 // and the most a wall may turn over the reach, with a metre to spare.
 double square_look_width_m(double reach_m) {
-  return kSearchBandM + std::sin(kMaxTurnDeg * kDegToRad) * reach_m + 1.0;
+  return kSearchBandM + std::sin(kMaxTurnDeg * kRadiansPerDegree) * reach_m + 1.0;
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "blockmap/core/angles.hpp"
 #include "blockmap/core/check.hpp"
 #include "blockmap/planes/fast_trig.hpp"
 
@@ -11,10 +12,6 @@ namespace blockmap::planes {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-
-double degrees_to_radians(double degrees) {
-  return degrees * kPi / 180.0;
-}
 
 // Cells in band k: the circumference at theta_k over the cell width, at least one. The
 // equator band holds half a circle (n and -n are the same plane there).
@@ -56,7 +53,7 @@ void OrientationGrid::init(Arena& arena, double angle_bin_deg, OrientationMode m
   }
   cell_normal_ = arena.allocate_array<Eigen::Vector3f>(cells, "planes.orientation_grid");
   cell_row_ = arena.allocate_array<std::int32_t>(cells, "planes.orientation_grid");
-  const double tolerance_rad = degrees_to_radians(tolerance_deg);
+  const double tolerance_rad = radians_from_degrees(tolerance_deg);
   std::uint32_t rows = 0;
   for (std::uint32_t band = 0; band < band_count_; ++band) {
     const double theta = static_cast<double>(band) * step_rad;
@@ -84,7 +81,7 @@ void OrientationGrid::init(Arena& arena, double angle_bin_deg, OrientationMode m
   if (contents == Contents::kFull) {
     build_neighbours();
   }
-  build_kernels(arena, static_cast<float>(degrees_to_radians(kernel_deg)), contents);
+  build_kernels(arena, static_cast<float>(radians_from_degrees(kernel_deg)), contents);
 }
 
 void OrientationGrid::mark_searched_heights(Arena& arena) {

@@ -7,6 +7,7 @@
 #include <limits>
 #include <numbers>
 
+#include "blockmap/core/angles.hpp"
 #include "blockmap/core/check.hpp"
 #include "blockmap/planes/corner_look.hpp"
 #include "blockmap/planes/polygon.hpp"
@@ -55,7 +56,6 @@ MeasuredGrid measured_orientation_grid(const PlanesConfig& config) {
   return {static_cast<double>(scratch.used_bytes()), static_cast<double>(grid.row_count())};
 }
 
-constexpr double kDegToRad = std::numbers::pi / 180.0;
 // The inlier band: this many times the fit's RMS distance, grown in at most this many extra
 // refinement steps.
 constexpr double kBandPerRmse = 3.0;
@@ -104,7 +104,7 @@ void PlaneDetector::init(Arena& arena, const PlanesConfig& config) {
       arena.allocate_array<Eigen::Vector3f>(config.max_samples_per_section, "planes.detector");
   inliers_ = arena.allocate_array<std::uint32_t>(config.max_samples_per_section, "planes.detector");
   peaks_ = arena.allocate_array<HoughPeak>(config.max_planes_per_section, "planes.detector");
-  cos_inlier_angle_ = static_cast<float>(std::cos(config.inlier_angle_deg * kDegToRad));
+  cos_inlier_angle_ = static_cast<float>(std::cos(config.inlier_angle_deg * kRadiansPerDegree));
 }
 
 std::size_t PlaneDetector::arena_budget_bytes(const PlanesConfig& config) noexcept {
@@ -515,7 +515,7 @@ bool PlaneDetector::orientation_searched(const Eigen::Vector3d& normal) const no
   if (config_.orientation_mode == OrientationMode::kAny) {
     return true;
   }
-  const double tolerance = config_.orientation_tolerance_deg * kDegToRad;
+  const double tolerance = config_.orientation_tolerance_deg * kRadiansPerDegree;
   const double z = std::abs(normal.z());
   return z >= std::cos(tolerance) || z <= std::sin(tolerance);
 }

@@ -7,6 +7,7 @@
 #include <tuple>
 #include <type_traits>
 
+#include "blockmap/core/angles.hpp"
 #include "blockmap/core/check.hpp"
 #include "blockmap/planes/polygon.hpp"
 
@@ -29,10 +30,10 @@ constexpr double kSlabPerRmse = 3.0;
 constexpr double kOffsetPerRmse = 1.0;
 
 double cos_deg(double degrees) {
-  return std::cos(degrees * std::numbers::pi / 180.0);
+  return std::cos(radians_from_degrees(degrees));
 }
 double sin_deg(double degrees) {
-  return std::sin(degrees * std::numbers::pi / 180.0);
+  return std::sin(radians_from_degrees(degrees));
 }
 
 bool boxes_within(const Eigen::Vector3d& a_min, const Eigen::Vector3d& a_max,

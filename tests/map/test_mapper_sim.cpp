@@ -65,6 +65,7 @@ struct MapperRun {
   bool id_reused = false;            // a change to a plane after it was removed
   std::vector<std::uint8_t> stream;  // every update as the binary plane stream encodes it
   MapperCounters counters;
+  pipeline::RigidPathCounters rigid_path;
   map::PlaneRegistryCounters registry;
   std::size_t peak_samples = 0;
   std::uint64_t tiles_evicted = 0;
@@ -267,6 +268,7 @@ MapperRun map_world(const WorldRun& w) {
   run.buildings.assign(mapper->buildings().begin(), mapper->buildings().end());
   run.faces = simulated->simulation().scene().faces();
   run.counters = mapper->counters();
+  run.rigid_path = mapper->rigid_path_counters();
   run.registry = mapper->registry().counters();
   run.peak_samples = mapper->window().counters().peak_samples;
   run.tiles_evicted = mapper->window().counters().tiles_evicted;
@@ -896,8 +898,8 @@ TEST(MapperSim, BenningBuildingsWithTheRigidPath) {
   // drawn one and its shape 0.35-0.86 (docs/localize.md; seed 1, 2026-12-05: 0.73 and 0.66).
   EXPECT_LT(rigid.solved_rms_m, 0.8 * rigid.drawn_rms_m);
   EXPECT_LT(rigid.solved_shape_m, 0.75 * rigid.drawn_shape_m);
-  EXPECT_GT(rigid.counters.planes_moved, rigid.final_planes.size() / 2);
-  EXPECT_EQ(rigid.counters.rigid_path_fixes_dropped, 0u);
+  EXPECT_GT(rigid.rigid_path.planes_moved, rigid.final_planes.size() / 2);
+  EXPECT_EQ(rigid.rigid_path.fixes_dropped, 0u);
   expect_stream_gives_final_list(rigid);
 }
 
@@ -1045,7 +1047,7 @@ TEST(MapperSim, DISABLED_TheTableOfTheRigidPathOverSeeds) {
             "%s: mean IoU %.3f, %zu of %zu shapes right, %llu planes moved; path drawn "
             "%.2f m (shape %.2f), solved %.2f m (shape %.2f)\n",
             label.c_str(), iou_sum / static_cast<double>(matches.size()), shapes, matches.size(),
-            static_cast<unsigned long long>(run.counters.planes_moved), run.drawn_rms_m,
+            static_cast<unsigned long long>(run.rigid_path.planes_moved), run.drawn_rms_m,
             run.drawn_shape_m, run.solved_rms_m, run.solved_shape_m);
         sums[rigid ? 1 : 0] += iou_sum;
         right[rigid ? 1 : 0] += shapes;

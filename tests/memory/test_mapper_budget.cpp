@@ -112,7 +112,7 @@ TEST(MapperBudget, TheRigidPathAllocatesNothingAndFitsTheBudget) {
   const auto mapper = map_with_the_arena_sealed(arena, config, inputs);
   EXPECT_GT(mapper->rigid_path().keyframe_count(), 20u);
   EXPECT_GT(mapper->rigid_path().counters().solves, 1u);
-  EXPECT_GT(mapper->counters().planes_moved, 0u);
+  EXPECT_GT(mapper->rigid_path_counters().planes_moved, 0u);
 }
 
 // When the path is solved: by default wherever the level scans are matched and no free-space

@@ -102,6 +102,20 @@ TEST(RingBuffer, TakesItsCapacityFromTheArena) {
   EXPECT_EQ(ring.front(), 42u);
 }
 
+TEST(RingBuffer, AMemberTakesItsCapacityFromTheArenaAtInit) {
+  Arena arena(1024);
+  RingBufferRef<int> ring;  // as a member whose capacity comes from configuration
+  ring.init(arena, 3, "test.ring");
+  EXPECT_EQ(ring.capacity(), 3u);
+  for (int value = 1; value <= 4; ++value) {
+    ring.push_overwrite(value);
+  }
+  EXPECT_EQ(ring[0], 2);
+  EXPECT_EQ(ring.back(), 4);
+  EXPECT_EQ(ring.dropped_oldest().value(), 1u);
+  EXPECT_EQ(arena.used_bytes(), 3 * sizeof(int));
+}
+
 TEST(RingBuffer, ReportsElementStoragePlusBookkeeping) {
   RingBuffer<std::uint64_t, 100> ring;
   EXPECT_EQ(ring.memory_bytes(),

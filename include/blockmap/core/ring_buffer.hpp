@@ -32,6 +32,15 @@ class RingBufferRef {
   // Takes `capacity` slots from the arena at init.
   RingBufferRef(Arena& arena, std::size_t capacity, const char* owner)
       : RingBufferRef(arena.allocate_array<T>(capacity, owner)) {}
+  // A member whose capacity comes from configuration: no storage until init().
+  RingBufferRef() = default;
+  void init(Arena& arena, std::size_t capacity, const char* owner) {
+    BLOCKMAP_CHECK_MSG(capacity > 0, "a ring buffer needs a capacity of at least one");
+    data_ = arena.allocate_array<T>(capacity, owner).data();
+    capacity_ = capacity;
+    head_ = 0;
+    size_ = 0;
+  }
 
   RingBufferRef(const RingBufferRef&) = delete;
   RingBufferRef& operator=(const RingBufferRef&) = delete;

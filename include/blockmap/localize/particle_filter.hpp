@@ -108,9 +108,6 @@ class ParticleFilter {
 
   // The weighted mean of the particles now (odometry not yet applied to them included).
   [[nodiscard]] Pose2 estimate() const noexcept;
-  // The spread of the particles' positions (the square root of the covariance's trace), as
-  // of the last batch of odometry applied to them (at most a history step old).
-  [[nodiscard]] double position_spread_m() const noexcept;
   // The spread of the particles' headings: the circular standard deviation, sqrt(-2 ln R)
   // for the mean resultant length R of their weighted unit vectors (infinite for headings
   // spread evenly round, as at the start before the robot has moved).
@@ -153,7 +150,6 @@ class ParticleFilter {
     double mean_y_m = 0.0;
     double spread_m = 0.0;
   };
-  [[nodiscard]] PositionStats position_stats() const noexcept;
   // Of where the particles expect `fix`: the antenna's position plus their estimate of the
   // receiver's error.
   [[nodiscard]] PositionStats expected_fix_stats(const GpsObservation& fix) const noexcept;

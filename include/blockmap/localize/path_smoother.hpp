@@ -151,9 +151,8 @@ class PathSmoother {
   void solve() noexcept;
 
   [[nodiscard]] std::size_t keyframe_count() const noexcept { return count_; }
-  // The solved pose and the receiver's solved slow error at keyframe i (0: the oldest).
+  // The solved pose at keyframe i (0: the oldest).
   [[nodiscard]] Pose2 pose(std::size_t i) const noexcept;
-  [[nodiscard]] Eigen::Vector2d receiver_error_m(std::size_t i) const noexcept;
   // The solved pose at stamp_ns: the keyframe at or before it, moved by the odometry to the
   // next one's time in proportion (odometry poses in between are not kept). Before the first
   // keyframe, the first; after the last, the last.
