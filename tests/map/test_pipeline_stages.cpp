@@ -203,7 +203,8 @@ TEST(ScanPlanes, ALaserMovingInItsScanPlaneLeavesItOutAndOneSweepingAcrossDoesNo
   across_mount.pitch_rad = std::numbers::pi / 2;
   const map::ScanProjector across(across_mount, map::ScanProjectorConfig{});
   for (int step = 0; step < 10; ++step) {
-    const localize::Pose3 pose = pose_at(step * 100 * kMs, step * 1.0, 0.0);
+    const localize::Pose3 pose =
+        pose_at(TimestampNs{step} * 100 * kMs, static_cast<double>(step), 0.0);
     scan_planes.record(0, level, pose);
     scan_planes.record(1, across, pose);
   }
