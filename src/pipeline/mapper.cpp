@@ -35,7 +35,7 @@ void Mapper::init(Arena& arena, const MapperConfig& config) {
     free_space_.init(arena, config.free_space);
   }
   for (std::size_t laser = 0; laser < config.laser_count; ++laser) {
-    carves_free_space_[laser] = free_space_.enabled() && is_level_laser(config, laser);
+    carves_free_space_[laser] = free_space_.enabled() && level[laser];
   }
   reorder_.init(arena, config.reorder_capacity, config.reorder_window_s);
   const std::size_t slots = scan_queue_slots(config);
@@ -49,7 +49,7 @@ void Mapper::init(Arena& arena, const MapperConfig& config) {
 std::size_t Mapper::arena_bytes(const MapperConfig& config) noexcept {
   constexpr std::size_t kSlack = 64;
   return ScanPoses::arena_bytes(config.pose_source, config.localizer, config.max_external_poses) +
-         localize::ScanMatcher::arena_bytes(matcher_config(config)) +
+         ScanCorrection::arena_bytes(matcher_config(config)) +
          (solves_the_path(config) ? RigidPathSolver::arena_bytes(config.path) : 0) +
          map::VoxelWindow::arena_bytes(config.window) +
          planes::PlaneDetector::arena_budget_bytes(detector_config(config)) +

@@ -50,7 +50,7 @@ class ReorderBuffer {
     Outcome outcome = Outcome::kQueued;
     if (count_ == pending_.size()) {
       outcome = Outcome::kForcedEarly;
-      release_one(release);
+      release_at(0, release);
       std::move(pending_.begin() + 1, pending_.begin() + static_cast<std::ptrdiff_t>(count_),
                 pending_.begin());
       --count_;
@@ -73,9 +73,7 @@ class ReorderBuffer {
     const TimestampNs due_ns = newest_in_ns_ - window_ns_;
     std::size_t released = 0;
     while (released < count_ && (all || pending_[released].stamp_ns <= due_ns)) {
-      released_ns_ = pending_[released].stamp_ns;
-      released_any_ = true;
-      release(pending_[released]);
+      release_at(released, release);
       ++released;
     }
     if (released > 0) {
@@ -89,10 +87,10 @@ class ReorderBuffer {
 
  private:
   template <typename Release>
-  void release_one(Release& release) {
-    released_ns_ = pending_[0].stamp_ns;
+  void release_at(std::size_t index, Release& release) {
+    released_ns_ = pending_[index].stamp_ns;
     released_any_ = true;
-    release(pending_[0]);
+    release(pending_[index]);
   }
 
   std::span<TimedMessage> pending_;  // ordered by time, oldest first

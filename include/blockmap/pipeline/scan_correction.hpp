@@ -24,6 +24,9 @@ class ScanCorrection {
   // correction of the last matched scan before them.
   void init(Arena& arena, const localize::ScanMatchConfig& config,
             const std::array<bool, kMaxLasers>& matched);
+  [[nodiscard]] static std::size_t arena_bytes(const localize::ScanMatchConfig& config) noexcept {
+    return localize::ScanMatcher::arena_bytes(config);
+  }
   [[nodiscard]] bool enabled() const noexcept { return matcher_.enabled(); }
 
   enum class Outcome : std::uint8_t {
