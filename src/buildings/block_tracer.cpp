@@ -331,6 +331,36 @@ double BlockTracer::long_axis(const Block& block, double axis_rad) const noexcep
   return high.y() - low.y() > high.x() - low.x() ? axis_rad + 0.5 * std::numbers::pi : axis_rad;
 }
 
+namespace {
+
+// Drops the corners of a ring of n that repeat their predecessor or lie in line with both
+// neighbours, keeping four at least; returns how many are left.
+template <std::size_t N>
+std::size_t drop_corners_in_line(std::array<Eigen::Vector2d, N>& ring, std::size_t n) {
+  for (bool dropped = true; dropped && n > 4;) {
+    dropped = false;
+    for (std::size_t k = 0; k < n && n > 4; ++k) {
+      const Eigen::Vector2d& prev = ring[(k + n - 1) % n];
+      const Eigen::Vector2d& here = ring[k];
+      const Eigen::Vector2d& next = ring[(k + 1) % n];
+      const bool repeated = (here - prev).norm() < 1e-9;
+      const bool in_line =
+          (std::abs(prev.x() - here.x()) < 1e-9 && std::abs(here.x() - next.x()) < 1e-9) ||
+          (std::abs(prev.y() - here.y()) < 1e-9 && std::abs(here.y() - next.y()) < 1e-9);
+      if (repeated || in_line) {
+        std::copy(ring.begin() + static_cast<std::ptrdiff_t>(k + 1),
+                  ring.begin() + static_cast<std::ptrdiff_t>(n),
+                  ring.begin() + static_cast<std::ptrdiff_t>(k));
+        --n;
+        dropped = true;
+      }
+    }
+  }
+  return n;
+}
+
+}  // namespace
+
 BlockTracer::Outline BlockTracer::outline(const Block& block, double axis_rad,
                                           std::span<const SideWall> walls) noexcept {
   Outline out;
@@ -343,6 +373,26 @@ BlockTracer::Outline BlockTracer::outline(const Block& block, double axis_rad,
     return out;
   }
   snap_to_walls(walls);
+  merge_alike_bands();
+  // Counter-clockwise (u right, v up): along the bottom from the west, up the east end, back
+  // along the top; then corners in line with their neighbours are dropped.
+  std::array<Eigen::Vector2d, 4 * kMaxBands> ring{};
+  std::size_t n = 0;
+  for (std::size_t b = 0; b < band_count_; ++b) {
+    ring[n++] = {bands_[b].u0, bands_[b].v_lo};
+    ring[n++] = {bands_[b].u1, bands_[b].v_lo};
+  }
+  for (std::size_t b = band_count_; b-- > 0;) {
+    ring[n++] = {bands_[b].u1, bands_[b].v_hi};
+    ring[n++] = {bands_[b].u0, bands_[b].v_hi};
+  }
+  n = drop_corners_in_line(ring, n);
+  std::copy_n(ring.begin(), n, out.corners.begin());
+  out.size = static_cast<std::uint8_t>(n);
+  return out;
+}
+
+void BlockTracer::merge_alike_bands() noexcept {
   // Sides of neighbouring bands that landed within kSameSideM of each other are one side (a
   // jog that small is two walls' fits, not a step of the block); bands alike on both are one.
   for (std::size_t b = 0; b + 1 < band_count_; ++b) {
@@ -365,41 +415,6 @@ BlockTracer::Outline BlockTracer::outline(const Block& block, double axis_rad,
       ++b;
     }
   }
-
-  // Counter-clockwise (u right, v up): along the bottom from the west, up the east end, back
-  // along the top; then corners in line with their neighbours are dropped.
-  std::array<Eigen::Vector2d, 4 * kMaxBands> ring{};
-  std::size_t n = 0;
-  for (std::size_t b = 0; b < band_count_; ++b) {
-    ring[n++] = {bands_[b].u0, bands_[b].v_lo};
-    ring[n++] = {bands_[b].u1, bands_[b].v_lo};
-  }
-  for (std::size_t b = band_count_; b-- > 0;) {
-    ring[n++] = {bands_[b].u1, bands_[b].v_hi};
-    ring[n++] = {bands_[b].u0, bands_[b].v_hi};
-  }
-  for (bool dropped = true; dropped && n > 4;) {
-    dropped = false;
-    for (std::size_t k = 0; k < n && n > 4; ++k) {
-      const Eigen::Vector2d& prev = ring[(k + n - 1) % n];
-      const Eigen::Vector2d& here = ring[k];
-      const Eigen::Vector2d& next = ring[(k + 1) % n];
-      const bool repeated = (here - prev).norm() < 1e-9;
-      const bool in_line =
-          (std::abs(prev.x() - here.x()) < 1e-9 && std::abs(here.x() - next.x()) < 1e-9) ||
-          (std::abs(prev.y() - here.y()) < 1e-9 && std::abs(here.y() - next.y()) < 1e-9);
-      if (repeated || in_line) {
-        std::copy(ring.begin() + static_cast<std::ptrdiff_t>(k + 1),
-                  ring.begin() + static_cast<std::ptrdiff_t>(n),
-                  ring.begin() + static_cast<std::ptrdiff_t>(k));
-        --n;
-        dropped = true;
-      }
-    }
-  }
-  std::copy_n(ring.begin(), n, out.corners.begin());
-  out.size = static_cast<std::uint8_t>(n);
-  return out;
 }
 
 }  // namespace blockmap::buildings

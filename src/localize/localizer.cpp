@@ -64,7 +64,7 @@ void Localizer::init(Arena& arena, const LocalizerConfig& config) {
 }
 
 std::size_t Localizer::arena_bytes(const LocalizerConfig& config) noexcept {
-  constexpr std::size_t kAlignment = 64;
+  constexpr std::size_t kAlignment = Arena::kMaxPaddingBytes;
   return ParticleFilter::arena_bytes(config.filter) +
          (config.filter.history_steps + 1) * sizeof(Attitude) +
          config.filter.history_steps * sizeof(Pose2) +

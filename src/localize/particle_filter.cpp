@@ -99,7 +99,7 @@ void ParticleFilter::init(Arena& arena, const LocalizeConfig& config) {
 }
 
 std::size_t ParticleFilter::arena_bytes(const LocalizeConfig& config) noexcept {
-  constexpr std::size_t kAlignment = 64;  // per allocation, at most
+  constexpr std::size_t kAlignment = Arena::kMaxPaddingBytes;
   const std::size_t n = config.particle_count;
   return kGaussianTableSize * sizeof(float) + 14 * n * sizeof(double) +
          5 * n * sizeof(std::uint32_t) + config.history_steps * n * sizeof(HistoryEntry) +

@@ -214,13 +214,9 @@ std::size_t VoxelWindow::home_of(planes::CellKey key) const noexcept {
 }
 
 std::uint32_t VoxelWindow::find_or_create(planes::CellKey key, TileSlot& slot) noexcept {
-  const std::size_t mask = table_.size() - 1;
-  std::size_t at = home_of(key);
-  while (table_[at].key != planes::kNoCell) {
-    if (table_[at].key == key) {
-      return table_[at].sample;
-    }
-    at = (at + 1) & mask;
+  const std::size_t at = probe_table(key);
+  if (table_[at].key == key) {
+    return table_[at].sample;
   }
   if (free_first_ == kNone) {
     return kNone;
@@ -238,11 +234,18 @@ std::uint32_t VoxelWindow::find_or_create(planes::CellKey key, TileSlot& slot) n
   return sample;
 }
 
+std::size_t VoxelWindow::probe_table(planes::CellKey key) const noexcept {
+  return probe(
+      home_of(key), table_.size() - 1,
+      [this](std::size_t at) { return table_[at].key == planes::kNoCell; },
+      [this, key](std::size_t at) { return table_[at].key == key; });
+}
+
 void VoxelWindow::erase_key(planes::CellKey key) noexcept {
   const std::size_t mask = table_.size() - 1;
-  std::size_t hole = home_of(key);
-  while (table_[hole].key != key) {
-    hole = (hole + 1) & mask;
+  const std::size_t hole = probe_table(key);
+  if (table_[hole].key != key) {
+    return;
   }
   erase_shifting_back(
       hole, mask, [this](std::size_t at) { return table_[at].key != planes::kNoCell; },

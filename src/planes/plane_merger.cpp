@@ -62,7 +62,7 @@ void PlaneMerger::init(Arena& arena, const PlanesConfig& config) {
 }
 
 std::size_t PlaneMerger::arena_bytes(const PlanesConfig& config) noexcept {
-  constexpr std::size_t kAlignment = 64;  // per allocation, at most
+  constexpr std::size_t kAlignment = Arena::kMaxPaddingBytes;
   const std::size_t patches = config.max_patches;
   const std::size_t planes = config.max_planes;
   return patches * (sizeof(SectionPlane) + 2 * sizeof(std::uint32_t)) +

@@ -95,7 +95,7 @@ void SectionCache::init(Arena& arena, std::size_t max_blocks, std::size_t max_se
 
 std::size_t SectionCache::arena_bytes(std::size_t max_blocks, std::size_t max_sections,
                                       std::size_t max_section_planes) noexcept {
-  constexpr std::size_t kAlignment = 64;  // per allocation, at most
+  constexpr std::size_t kAlignment = Arena::kMaxPaddingBytes;
   return max_blocks * (3 + kCodeWords) * sizeof(std::uint64_t) + 2 * max_sections * sizeof(Entry) +
          max_section_planes * sizeof(SectionPlane) + 6 * kAlignment;
 }

@@ -84,6 +84,8 @@ class BlockTracer {
   std::size_t measure_columns(const Block& block, double axis_rad, double& u_start) noexcept;
   std::size_t cut_bands(std::size_t columns, double u_start) noexcept;
   void join_bands(std::size_t a) noexcept;
+  // Sides of neighbouring bands within kSameSideM are one side; bands alike on both are one.
+  void merge_alike_bands() noexcept;
   void snap_to_walls(std::span<const SideWall> walls) noexcept;
 
   BuildingsConfig config_;

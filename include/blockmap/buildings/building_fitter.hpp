@@ -108,6 +108,13 @@ class BuildingFitter {
     // trace was seen from afar or through gaps (a hedge), and stops where the view stopped.
     bool trusted_ends = true;
   };
+  // How well a model explains the pieces (the lowest cost wins).
+  struct ModelScore {
+    double unexplained_m = 0.0;  // observed length farther than fit_tolerance_m from the model
+    double missed_m = 0.0;       // model edge length in line with an observed wall, not seen
+    double distance_m = 0.0;     // length-weighted mean distance of what is explained
+    double cost = 0.0;
+  };
   // The bounding box of the pieces: lo and hi along u (index 0) and v (index 1).
   struct Box {
     std::array<double, 2> lo{};
@@ -115,13 +122,6 @@ class BuildingFitter {
   };
 
  private:
-  struct ModelScore {
-    double unexplained_m = 0.0;  // observed length farther than fit_tolerance_m from the model
-    double missed_m = 0.0;       // model edge length in line with an observed wall, not seen
-    double distance_m = 0.0;     // length-weighted mean distance of what is explained
-    double cost = 0.0;
-  };
-
   std::uint32_t find_root(std::uint32_t i) noexcept;
   void group_segments() noexcept;
   [[nodiscard]] bool same_building(const WallSegment& a, const WallSegment& b) const noexcept;
@@ -133,6 +133,9 @@ class BuildingFitter {
   // Cuts the pieces that run on past the outermost wall spanning the building across them:
   // what lies beyond a building's full front is not the building (trim_past_spanning_walls).
   void trim_past_spanning_walls(const Box& box) noexcept;
+  // Of the pieces along `across`, cuts those that run on a little past low_m or high_m, and
+  // drops low ones wholly beyond (parallel ones beyond, too).
+  void cut_pieces_beyond(int across, double low_m, double high_m) noexcept;
   [[nodiscard]] Box bounding_box() const noexcept;
   void propose_models(const Box& box) noexcept;
   // An L: the box with the notch at corner (side_u, side_v) (0: lo, 1: hi).
@@ -142,6 +145,10 @@ class BuildingFitter {
   void add_model(BuildingShape shape, const Box& box,
                  const std::array<const Eigen::Vector2d*, 4>& inner_corners) noexcept;
   [[nodiscard]] ModelScore score(const Model& model) const noexcept;
+  // The first of the proposed models with the lowest cost (rect before L before T).
+  [[nodiscard]] const Model& best_model(ModelScore& best_score) const noexcept;
+  // No model explains the walls: the building is its observed walls as they are.
+  void add_observed_walls(Building& building) const noexcept;
   void emit_walls(const Model& model, double axis_rad, Building& building) const noexcept;
   static void set_confidence(Building& building) noexcept;
   // The length-weighted direction of the walls modulo 90 degrees.

@@ -28,6 +28,14 @@ class Arena {
     const char* owner = nullptr;
     std::size_t bytes = 0;
   };
+  // What one allocation may take beyond its bytes to align them (no type here is aligned to
+  // more): a size computed before init adds this per allocation.
+  static constexpr std::size_t kMaxPaddingBytes = 64;
+  // The bytes allocate_array<T>(count) takes at most.
+  template <typename T>
+  [[nodiscard]] static constexpr std::size_t array_bytes(std::size_t count) noexcept {
+    return count * sizeof(T) + kMaxPaddingBytes;
+  }
   // Owners beyond this many are summed into the last line, named "(other owners)".
   static constexpr std::size_t kMaxOwners = 48;
 

@@ -178,6 +178,8 @@ class VoxelWindow {
   // The sample of `key` (in tile slot `slot`), created when new; kNone when the pool is full.
   [[nodiscard]] std::uint32_t find_or_create(planes::CellKey key, TileSlot& slot) noexcept;
   [[nodiscard]] std::size_t home_of(planes::CellKey key) const noexcept;
+  // The slot holding `key`, or the empty slot where it would go.
+  [[nodiscard]] std::size_t probe_table(planes::CellKey key) const noexcept;
   void erase_key(planes::CellKey key) noexcept;
   void evict(TileSlot& slot, EvictionSink& sink) noexcept;
 
