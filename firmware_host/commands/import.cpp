@@ -32,13 +32,13 @@
 
 #include "blockmap/core/angles.hpp"
 #include "blockmap/hal/config/config_error.hpp"
+#include "blockmap/hal/config/robot.hpp"
 #include "blockmap/hal/geodesy.hpp"
 #include "blockmap/hal/protocol/byte_log.hpp"
 #include "blockmap/hal/protocol/candump.hpp"
 #include "blockmap/hal/protocol/nmea.hpp"
 #include "blockmap/hal/protocol/segway_rmp.hpp"
 #include "blockmap/hal/protocol/sick_lms2xx.hpp"
-#include "blockmap/hal/sim/robot.hpp"
 #include "blockmap/hal/sim/sensor_models.hpp"
 #include "cli.hpp"
 #include "commands/commands.hpp"
@@ -245,7 +245,7 @@ struct ScanImport {
 
 // One B0 telegram per scan row, in a byte log record stamped with the row's time. A row whose
 // range count is not the laser's is an error that names the line: a different laser setup.
-ScanImport write_scans(const std::string& path, const hal::sim::LaserSpec& laser,
+ScanImport write_scans(const std::string& path, const hal::config::LaserSpec& laser,
                        const fs::path& folder, double start_s, double end_s) {
   namespace lms = hal::protocol::sick_lms2xx;
   namespace byte_log = hal::protocol::byte_log;
@@ -314,7 +314,7 @@ ScanImport write_scans(const std::string& path, const hal::sim::LaserSpec& laser
 }
 
 // GGA and RMC of one epoch, as the simulated receiver sends them (open sky: the spec's HDOP).
-void write_epoch(std::FILE* out, const hal::sim::GpsSpec& spec, double utc_s,
+void write_epoch(std::FILE* out, const hal::config::GpsSpec& spec, double utc_s,
                  const hal::GeodeticPoint& point) {
   msg::GpsFix fix;
   hal::sim::set_fix_utc(fix, utc_s);
@@ -360,8 +360,8 @@ int import_trajectory(const ImportOptions& options, std::ostream& err) {
   const hal::GeodeticPoint origin = *parsed_origin;
   const Reference reference = read_reference(options.trajectory);
   std::string robot_source;
-  const std::string robot_toml = hal::sim::robot_text(options.robot, robot_source);
-  const hal::sim::RobotSpec robot = hal::sim::parse_robot(robot_toml, robot_source);
+  const std::string robot_toml = hal::config::robot_text(options.robot, robot_source);
+  const hal::config::RobotSpec robot = hal::config::parse_robot(robot_toml, robot_source);
   const fs::path folder(options.out);
   fs::create_directories(folder);
   std::ofstream(folder / "robot.toml") << robot_toml;

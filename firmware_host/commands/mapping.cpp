@@ -5,9 +5,7 @@
 #include <ostream>
 
 #include "blockmap/hal/cloud/point_cloud_file.hpp"
-#include "blockmap/hal/config/buildings_config.hpp"
-#include "blockmap/hal/config/planes_config.hpp"
-#include "blockmap/hal/config/window_config.hpp"
+#include "blockmap/hal/config/mapper_config.hpp"
 #include "blockmap/hal/sim/simulated_robot.hpp"
 
 namespace blockmap::cli {
@@ -17,15 +15,12 @@ constexpr double kMiB = 1024.0 * 1024.0;
 
 }  // namespace
 
-pipeline::MapperConfig mapper_config_for(const hal::sim::RobotSpec& robot,
+pipeline::MapperConfig mapper_config_for(const hal::config::RobotSpec& robot,
                                          const MappingOptions& options) {
-  pipeline::MapperConfig config = hal::sim::mapper_config_for(robot);
+  pipeline::MapperConfig config = hal::config::mapper_config_for(robot);
   if (!options.config.empty()) {
-    config.planes = hal::config::load_planes_config(options.config, config.planes);
-    config.buildings = hal::config::load_buildings_config(options.config, config.buildings);
-    config = hal::config::load_window_config(options.config, config);
+    config = hal::config::load_mapper_config(options.config, config);
   }
-  config.window.voxel_size_m = config.planes.sample_size_m;
   return config;
 }
 

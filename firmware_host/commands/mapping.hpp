@@ -13,8 +13,8 @@
 #include <vector>
 
 #include "blockmap/core/arena.hpp"
+#include "blockmap/hal/config/robot.hpp"
 #include "blockmap/hal/geodesy.hpp"
-#include "blockmap/hal/sim/robot.hpp"
 #include "blockmap/pipeline/mapper.hpp"
 #include "outputs/map_outputs.hpp"
 #include "outputs/output_thread.hpp"
@@ -44,9 +44,9 @@ class CloudRecorder final : public pipeline::PointSink {
   std::vector<Eigen::Vector3f> points_;
 };
 
-// The mapper's configuration for `robot` (hal::sim::mapper_config_for) with the [planes]
+// The mapper's configuration for `robot` (hal::config::mapper_config_for) with the [planes]
 // table of options.config when given. Throws ConfigError.
-[[nodiscard]] pipeline::MapperConfig mapper_config_for(const hal::sim::RobotSpec& robot,
+[[nodiscard]] pipeline::MapperConfig mapper_config_for(const hal::config::RobotSpec& robot,
                                                        const MappingOptions& options);
 
 class MappingSession {

@@ -10,11 +10,11 @@
 #include <vector>
 
 #include "blockmap/core/spsc_queue.hpp"
+#include "blockmap/hal/config/robot.hpp"
 #include "blockmap/hal/devices/gps_receiver.hpp"
 #include "blockmap/hal/devices/laser_scanners.hpp"
 #include "blockmap/hal/devices/segway_base.hpp"
 #include "blockmap/hal/replay/log_ports.hpp"
-#include "blockmap/hal/sim/robot.hpp"
 #include "blockmap/hal/sim/simulated_robot.hpp"
 
 namespace blockmap::cli {
@@ -23,15 +23,15 @@ namespace blockmap::cli {
 class RecordedRun {
  public:
   RecordedRun(const std::filesystem::path& dir, const hal::devices::SegwayBaseConfig& base_config,
-              const std::vector<hal::sim::LaserSpec>& lasers)
+              const std::vector<hal::config::LaserSpec>& lasers)
       : bus_((dir / "rmp.candump").string()),
         nmea_((dir / "gps.nmea").string()),
         base_(bus_, odometry_, imu_, base_config),
         gps_(nmea_, fixes_, hal::devices::GpsReceiverConfig{}) {
     static_cast<void>(base_.install_filters());
-    for (const hal::sim::LaserSpec& spec : lasers) {
+    for (const hal::config::LaserSpec& spec : lasers) {
       auto laser = std::make_unique<Laser>((dir / ("laser_" + spec.name + ".bytelog")).string(),
-                                           hal::sim::lms2xx_config_for(spec));
+                                           hal::config::lms2xx_config_for(spec));
       lasers_.push_back(std::move(laser));
     }
   }

@@ -19,12 +19,12 @@
 
 #include "blockmap/core/spsc_queue.hpp"
 #include "blockmap/hal/config/config_error.hpp"
+#include "blockmap/hal/config/robot.hpp"
 #include "blockmap/hal/devices/gps_receiver.hpp"
 #include "blockmap/hal/devices/laser_scanners.hpp"
 #include "blockmap/hal/devices/segway_base.hpp"
 #include "blockmap/hal/gps_observations.hpp"
 #include "blockmap/hal/replay/log_ports.hpp"
-#include "blockmap/hal/sim/robot.hpp"
 #include "blockmap/hal/sim/simulated_robot.hpp"
 #include "blockmap/pipeline/mapper.hpp"
 #include "cli.hpp"
@@ -144,15 +144,14 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
   }
   // The robot's configuration, when the log carries it (simulated runs and our logger do).
   hal::devices::SegwayBaseConfig base_config;
-  hal::sim::RobotSpec robot;
+  hal::config::RobotSpec robot;
   pipeline::MapperConfig config;
   if (fs::exists(dir / "robot.toml")) {
-    robot = hal::sim::load_robot((dir / "robot.toml").string());
-    hal::sim::require_lms2xx_lasers(robot, "the replay of byte logs");
-    base_config.rmp.model = robot.base.model;
-    base_config.rmp.yaw_sign = robot.base.yaw_sign;
+    robot = hal::config::load_robot((dir / "robot.toml").string());
+    hal::config::require_lms2xx_lasers(robot, "the replay of byte logs");
+    base_config = hal::config::segway_base_config_for(robot);
     // A laser the logger did not record (an import from odometry and GPS) is left out.
-    std::erase_if(robot.lasers, [&](const hal::sim::LaserSpec& laser) {
+    std::erase_if(robot.lasers, [&](const hal::config::LaserSpec& laser) {
       const bool recorded = fs::exists(dir / ("laser_" + laser.name + ".bytelog"));
       if (!recorded && !options.mapping.out.empty() && !options.mapping.trajectory_only) {
         err << "replay: no laser_" << laser.name << ".bytelog: mapping without that laser\n";

@@ -67,7 +67,7 @@ int run(const RunOptions& options, std::ostream& err) {
     err << "blockmap: run: " << problem << '\n';
     return kExitUsage;
   }
-  const hal::sim::RobotSpec robot = hal::sim::load_robot(options.robot);
+  const hal::config::RobotSpec robot = hal::config::load_robot(options.robot);
   if (options.poses != "filter" && options.poses != "truth") {
     err << "blockmap: run: --poses is filter or truth\n";
     return kExitUsage;

@@ -12,7 +12,7 @@
 
 #include "blockmap/hal/cloud/point_cloud_file.hpp"
 #include "blockmap/hal/config/config_error.hpp"
-#include "blockmap/hal/sim/robot.hpp"
+#include "blockmap/hal/config/robot.hpp"
 #include "blockmap/hal/sim/run_recorder.hpp"
 #include "blockmap/hal/sim/simulation.hpp"
 #include "blockmap/hal/sim/truth_cloud.hpp"
@@ -65,9 +65,9 @@ int simulate(const SimulateOptions& options, std::ostream& err) {
   std::string world_source;
   std::string robot_source;
   const std::string world_text = hal::sim::world_text(options.world, world_source);
-  const std::string robot_text = hal::sim::robot_text(options.robot, robot_source);
+  const std::string robot_text = hal::config::robot_text(options.robot, robot_source);
   const hal::sim::World world = hal::sim::parse_world(world_text, world_source);
-  const hal::sim::RobotSpec robot = hal::sim::parse_robot(robot_text, robot_source);
+  const hal::config::RobotSpec robot = hal::config::parse_robot(robot_text, robot_source);
   hal::sim::SimOptions sim_options;
   sim_options.seed = options.seed;
   sim_options.max_duration_s = options.duration_s;

@@ -17,9 +17,9 @@
 #include <utility>
 #include <vector>
 
+#include "blockmap/hal/config/robot.hpp"
 #include "blockmap/hal/gps_observations.hpp"
 #include "blockmap/hal/linux/steady_clock.hpp"
-#include "blockmap/hal/sim/robot.hpp"
 #include "blockmap/hal/sim/simulated_robot.hpp"
 #include "blockmap/hal/sim/world.hpp"
 #include "cli.hpp"
@@ -330,16 +330,16 @@ namespace {
 
 // The robot of a folder of logs (`replay:DIR`): its robot.toml, as `blockmap replay` reads it,
 // else [robot] spec; the lasers without a log are left out, and said so.
-std::string recorded_robot(const hal::config::DaemonConfig& config, hal::sim::RobotSpec& robot,
+std::string recorded_robot(const hal::config::DaemonConfig& config, hal::config::RobotSpec& robot,
                            std::ostream& err) {
   const std::filesystem::path dir(config.whole_robot->name);
   if (!std::filesystem::is_directory(dir)) {
     return "devices.robot: " + dir.string() + " is not a folder of device logs";
   }
   const std::filesystem::path spec = dir / "robot.toml";
-  robot = hal::sim::load_robot(std::filesystem::exists(spec) ? spec.string() : config.robot);
-  hal::sim::require_lms2xx_lasers(robot, "the replay of byte logs");
-  std::erase_if(robot.lasers, [&](const hal::sim::LaserSpec& laser) {
+  robot = hal::config::load_robot(std::filesystem::exists(spec) ? spec.string() : config.robot);
+  hal::config::require_lms2xx_lasers(robot, "the replay of byte logs");
+  std::erase_if(robot.lasers, [&](const hal::config::LaserSpec& laser) {
     const bool recorded = std::filesystem::exists(dir / ("laser_" + laser.name + ".bytelog"));
     if (!recorded) {
       err << "replay: no laser_" << laser.name << ".bytelog: mapping without that laser\n";
@@ -351,12 +351,12 @@ std::string recorded_robot(const hal::config::DaemonConfig& config, hal::sim::Ro
 
 // A TiM of the robot's spec is on USB, an LMS2xx on a serial line.
 std::string check_laser_protocols(const hal::config::DaemonConfig& config,
-                                  const hal::sim::RobotSpec& robot) {
+                                  const hal::config::RobotSpec& robot) {
   for (std::size_t i = 0; i < config.lasers.size(); ++i) {
     if (!config.lasers[i]) {
       continue;
     }
-    const bool tim = robot.lasers[i].protocol == hal::sim::LaserProtocol::kTim;
+    const bool tim = robot.lasers[i].protocol == hal::config::LaserProtocol::kTim;
     const bool usb = config.lasers[i]->backend == hal::DeviceBackend::kUsb;
     if (tim != usb) {
       return "devices.lasers[" + std::to_string(i) + "]: \"" + hal::to_string(*config.lasers[i]) +
@@ -383,13 +383,13 @@ class Daemon::Impl {
     const hal::config::DaemonConfig& config = options_.config;
     const bool replaying =
         config.whole_robot && config.whole_robot->backend == hal::DeviceBackend::kReplay;
-    hal::sim::RobotSpec robot;
+    hal::config::RobotSpec robot;
     if (replaying) {
       if (std::string problem = recorded_robot(config, robot, err); !problem.empty()) {
         return problem;
       }
     } else {
-      robot = hal::sim::load_robot(config.robot);
+      robot = hal::config::load_robot(config.robot);
     }
     if (!config.whole_robot) {
       hal::config::check_laser_count(config, robot.lasers.size(), options_.config_source);
@@ -397,7 +397,7 @@ class Daemon::Impl {
         return problem;
       }
       // Lasers without a device are left out of the mapper (their mounts with them).
-      std::vector<hal::sim::LaserSpec> attached;
+      std::vector<hal::config::LaserSpec> attached;
       std::vector<std::optional<hal::DeviceAddress>> addresses;
       for (std::size_t i = 0; i < config.lasers.size(); ++i) {
         if (config.lasers[i]) {

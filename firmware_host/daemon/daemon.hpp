@@ -1,4 +1,4 @@
-// The on-robot daemon (issue 9): `blockmap run --config FILE` with a [devices] table.
+// The on-robot daemon: `blockmap run --config FILE` with a [devices] table.
 //
 //   reader threads (DeviceLink)          pipeline thread              main thread
 //   CAN -> SegwayBase    -> queue  |

@@ -1,4 +1,4 @@
-// DeviceLink: one device's reader thread on the robot (issue 9). It opens the device's port,
+// DeviceLink: one device's reader thread on the robot. It opens the device's port,
 // starts the device, and polls it, each poll reading, decoding and publishing into the
 // device's SPSC queue. It is also the device's watchdog:
 // - a port that reports the device gone (kDeviceLost, kClosed, kIoError) is closed and opened

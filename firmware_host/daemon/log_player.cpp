@@ -15,10 +15,10 @@
 #include <system_error>
 #include <thread>
 
+#include "blockmap/hal/config/robot.hpp"
 #include "blockmap/hal/gps_observations.hpp"
 #include "blockmap/hal/protocol/nmea.hpp"
 #include "blockmap/hal/replay/log_ports.hpp"
-#include "blockmap/hal/sim/robot.hpp"
 
 namespace blockmap::cli::daemon {
 namespace {
@@ -239,8 +239,8 @@ std::string LogPlayer::open(const fs::path& dir, const fs::path& pty_dir, CanSin
   const TimestampNs start_ns = impl_->frame_due_ns == kNever ? 0 : impl_->frame_due_ns;
   std::vector<std::string> names;
   if (fs::exists(dir / "robot.toml")) {
-    for (const hal::sim::LaserSpec& laser :
-         hal::sim::load_robot((dir / "robot.toml").string()).lasers) {
+    for (const hal::config::LaserSpec& laser :
+         hal::config::load_robot((dir / "robot.toml").string()).lasers) {
       if (fs::exists(dir / ("laser_" + laser.name + ".bytelog"))) {
         names.push_back("laser_" + laser.name);
       }

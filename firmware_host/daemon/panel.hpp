@@ -1,4 +1,4 @@
-// The robot's panel (issue 9): a status LED and a mapping-enable switch on GPIO lines, and
+// The robot's panel: a status LED and a mapping-enable switch on GPIO lines, and
 // the GPS receiver's pulse-per-second line, whose edges put the fixes on the robot's clock
 // exactly (hal::FixConverter::on_pps).
 //

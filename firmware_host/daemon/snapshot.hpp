@@ -1,4 +1,4 @@
-// Snapshots of the map (issue 9: no lost map): every plane the registry holds, with the moments
+// Snapshots of the map (no map is lost): every plane the registry holds, with the moments
 // of its points, the next plane id, and the local frame's place on Earth, written so that a
 // crash or a power cut at any instant leaves a whole snapshot on disk: into a temporary file,
 // fsync'd, renamed over the last one (the one before kept as .prev until then), and the folder

@@ -44,7 +44,7 @@ class OwnedQueue {
 // The robot's devices, each on its reader thread.
 class RobotSource final : public Source {
  public:
-  RobotSource(const hal::config::DaemonConfig& config, const hal::sim::RobotSpec& robot,
+  RobotSource(const hal::config::DaemonConfig& config, const hal::config::RobotSpec& robot,
               std::unique_ptr<CanOpener> can, const hal::Clock& clock)
       : config_(config), can_(std::move(can)), clock_(clock) {
     timing_.silent_after_ns = ns_from_seconds(config.silent_after_s);
@@ -79,7 +79,7 @@ class RobotSource final : public Source {
                                            hal::devices::TimScannerConfig{});
       } else {
         hal::devices::Lms2xxScannerConfig laser_config =
-            hal::sim::lms2xx_config_for(robot.lasers[i]);
+            hal::config::lms2xx_config_for(robot.lasers[i]);
         laser_config.line_baud = config.lasers[i]->baud;
         laser_config.power_up_baud = config.lms_power_up_baud;
         laser = std::make_unique<SerialLaser>(*config.lasers[i], config.scan_queue_messages,
@@ -320,7 +320,7 @@ class OwnThreadSource : public Source {
 // thread, as fast as the pipeline takes their messages.
 class SimSource final : public OwnThreadSource {
  public:
-  SimSource(const hal::sim::World& world, const hal::sim::RobotSpec& robot,
+  SimSource(const hal::sim::World& world, const hal::config::RobotSpec& robot,
             const hal::sim::SimOptions& options, std::string name)
       : robot_(std::make_unique<hal::sim::SimulatedRobot>(world, robot, options)),
         name_(std::move(name)) {
@@ -402,9 +402,9 @@ class SimSource final : public OwnThreadSource {
 // takes them (a full queue waits; nothing recorded is dropped).
 class ReplaySource final : public OwnThreadSource {
  public:
-  ReplaySource(const std::filesystem::path& dir, const hal::sim::RobotSpec& robot,
+  ReplaySource(const std::filesystem::path& dir, const hal::config::RobotSpec& robot,
                const hal::config::DaemonConfig& config, std::string name)
-      : run_(dir, base_config_of(robot), robot.lasers),
+      : run_(dir, hal::config::segway_base_config_for(robot), robot.lasers),
         name_(std::move(name)),
         odometry_(config.base_queue_messages),
         imu_(config.base_queue_messages),
@@ -455,13 +455,6 @@ class ReplaySource final : public OwnThreadSource {
   }
 
  private:
-  static hal::devices::SegwayBaseConfig base_config_of(const hal::sim::RobotSpec& robot) {
-    hal::devices::SegwayBaseConfig config;
-    config.rmp.model = robot.base.model;
-    config.rmp.yaw_sign = robot.base.yaw_sign;
-    return config;
-  }
-
   // Waits for room in `queue` (or stop()); whether `value` went in.
   template <typename T>
   bool push(SpscQueueRef<T>& queue, const T& value) {
@@ -554,7 +547,7 @@ class ReplaySource final : public OwnThreadSource {
 }  // namespace
 
 std::unique_ptr<Source> replay_source(const std::filesystem::path& dir,
-                                      const hal::sim::RobotSpec& robot,
+                                      const hal::config::RobotSpec& robot,
                                       const hal::config::DaemonConfig& config, std::string name) {
   return std::make_unique<ReplaySource>(dir, robot, config, std::move(name));
 }
@@ -564,12 +557,13 @@ std::unique_ptr<CanOpener> socket_can_opener() {
 }
 
 std::unique_ptr<Source> robot_source(const hal::config::DaemonConfig& config,
-                                     const hal::sim::RobotSpec& robot,
+                                     const hal::config::RobotSpec& robot,
                                      std::unique_ptr<CanOpener> can, const hal::Clock& clock) {
   return std::make_unique<RobotSource>(config, robot, std::move(can), clock);
 }
 
-std::unique_ptr<Source> sim_source(const hal::sim::World& world, const hal::sim::RobotSpec& robot,
+std::unique_ptr<Source> sim_source(const hal::sim::World& world,
+                                   const hal::config::RobotSpec& robot,
                                    const hal::sim::SimOptions& options, std::string name) {
   return std::make_unique<SimSource>(world, robot, options, std::move(name));
 }

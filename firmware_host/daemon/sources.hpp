@@ -18,9 +18,9 @@
 #include "blockmap/hal/can_bus.hpp"
 #include "blockmap/hal/clock.hpp"
 #include "blockmap/hal/config/daemon_config.hpp"
+#include "blockmap/hal/config/robot.hpp"
 #include "blockmap/hal/geodesy.hpp"
 #include "blockmap/hal/gps_observations.hpp"
-#include "blockmap/hal/sim/robot.hpp"
 #include "blockmap/hal/sim/simulated_robot.hpp"
 #include "blockmap/hal/sim/simulation.hpp"
 #include "blockmap/hal/sim/world.hpp"
@@ -96,18 +96,18 @@ class Source {
 // The robot's devices of `config` (lasers already matched to `robot`'s), each on a reader
 // thread once started.
 [[nodiscard]] std::unique_ptr<Source> robot_source(const hal::config::DaemonConfig& config,
-                                                   const hal::sim::RobotSpec& robot,
+                                                   const hal::config::RobotSpec& robot,
                                                    std::unique_ptr<CanOpener> can,
                                                    const hal::Clock& clock);
 // The recorded logs in `dir` (`blockmap replay`'s folder) of `robot`, named `name` in messages
 // ("replay:DIR"): its lasers are the logs' (the caller leaves out those not recorded).
 [[nodiscard]] std::unique_ptr<Source> replay_source(const std::filesystem::path& dir,
-                                                    const hal::sim::RobotSpec& robot,
+                                                    const hal::config::RobotSpec& robot,
                                                     const hal::config::DaemonConfig& config,
                                                     std::string name);
 // The simulated robot in `world`, named `name` in messages ("sim:usc_block").
 [[nodiscard]] std::unique_ptr<Source> sim_source(const hal::sim::World& world,
-                                                 const hal::sim::RobotSpec& robot,
+                                                 const hal::config::RobotSpec& robot,
                                                  const hal::sim::SimOptions& options,
                                                  std::string name);
 

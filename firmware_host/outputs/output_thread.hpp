@@ -1,4 +1,4 @@
-// OutputThread: the daemon's outputs written off the pipeline thread (issue 9). Writing a
+// OutputThread: the daemon's outputs written off the pipeline thread. Writing a
 // plane update means formatting JSON (which allocates) and file and socket I/O (which may
 // stall on a robot's SD card); the pipeline thread does neither. It copies each update's
 // changes, the buildings and the smoothed poses into queues whose room is taken at start-up,

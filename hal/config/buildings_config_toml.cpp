@@ -1,18 +1,11 @@
 #include "blockmap/hal/config/buildings_config.hpp"
 
+#include "config_tables.hpp"
 #include "toml_reader.hpp"
 
 namespace blockmap::hal::config {
-buildings::BuildingsConfig parse_buildings_config(std::string_view text, std::string_view source,
-                                                  const buildings::BuildingsConfig& base) {
-  const toml::table document = parse_document(text, source);
-  TableReader root(document, std::string(source), "");
-  buildings::BuildingsConfig c = base;
-  auto table = root.table("buildings");
-  if (!table) {
-    return c;
-  }
-  TableReader& t = *table;
+
+void read_buildings_table(TableReader& t, buildings::BuildingsConfig& c) {
   c.min_wall_length_m = t.number_or("min_wall_length_m", c.min_wall_length_m);
   c.use_low_walls = t.boolean_or("use_low_walls", c.use_low_walls);
   c.min_low_wall_support_per_m =
@@ -42,9 +35,18 @@ buildings::BuildingsConfig parse_buildings_config(std::string_view text, std::st
   c.max_buildings = t.capacity_or("max_buildings", c.max_buildings);
   c.max_blocks = t.capacity_or("max_blocks", c.max_blocks);
   t.finish();
-  const std::string problem = buildings::validate(c);
-  if (!problem.empty()) {
-    throw ConfigError(std::string(source) + ": buildings: " + problem);
+  if (const std::string problem = buildings::validate(c); !problem.empty()) {
+    t.reject("buildings: " + problem);
+  }
+}
+
+buildings::BuildingsConfig parse_buildings_config(std::string_view text, std::string_view source,
+                                                  const buildings::BuildingsConfig& base) {
+  const toml::table document = parse_document(text, source);
+  TableReader root(document, std::string(source), "");
+  buildings::BuildingsConfig c = base;
+  if (auto table = root.table("buildings")) {
+    read_buildings_table(*table, c);
   }
   return c;
 }

@@ -1,21 +1,18 @@
 #include "blockmap/hal/config/planes_config.hpp"
 
+#include "config_tables.hpp"
 #include "toml_reader.hpp"
 
 namespace blockmap::hal::config {
-planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view source,
-                                         const planes::PlanesConfig& base) {
-  const toml::table document = parse_document(text, source);
-  TableReader root(document, std::string(source), "");
-  planes::PlanesConfig c = base;
-  auto table = root.table("planes");
-  if (!table) {
-    return c;
-  }
-  TableReader& t = *table;
+
+void read_planes_table(TableReader& t, planes::PlanesConfig& c) {
   c.sample_size_m = t.number_or("sample_size_m", c.sample_size_m);
   c.section_size_m = t.number_or("section_size_m", c.section_size_m);
-  c.section_stride_m = t.number_or("section_stride_m", c.section_stride_m);
+  if (t.has("section_stride_m")) {
+    t.fail("section_stride_m",
+           "is 4 x sample_size_m (the samples' 4 x 4 x 4 blocks): set "
+           "sample_size_m");
+  }
   c.d_bin_m = t.number_or("d_bin_m", c.d_bin_m);
   c.angle_bin_deg = t.number_or("angle_bin_deg", c.angle_bin_deg);
   const std::string orientation = t.string_or("orientations", "walls_and_roofs");
@@ -80,9 +77,18 @@ planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view
   c.max_patches = t.capacity_or("max_patches", c.max_patches);
   c.max_planes = t.capacity_or("max_planes", c.max_planes);
   t.finish();
-  const std::string problem = planes::validate(c);
-  if (!problem.empty()) {
-    throw ConfigError(std::string(source) + ": planes: " + problem);
+  if (const std::string problem = planes::validate(c); !problem.empty()) {
+    t.reject("planes: " + problem);
+  }
+}
+
+planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view source,
+                                         const planes::PlanesConfig& base) {
+  const toml::table document = parse_document(text, source);
+  TableReader root(document, std::string(source), "");
+  planes::PlanesConfig c = base;
+  if (auto table = root.table("planes")) {
+    read_planes_table(*table, c);
   }
   return c;
 }

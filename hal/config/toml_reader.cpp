@@ -70,6 +70,10 @@ void TableReader::fail(std::string_view key, std::string_view what) const {
   throw ConfigError(source_ + ": " + key_path(key) + ": " + std::string(what));
 }
 
+void TableReader::reject(std::string_view problem) const {
+  throw ConfigError(source_ + ": " + std::string(problem));
+}
+
 bool TableReader::has(std::string_view key) const {
   return table_->contains(key);
 }

@@ -80,6 +80,8 @@ class TableReader {
 
   // "source: path.key: what"
   [[noreturn]] void fail(std::string_view key, std::string_view what) const;
+  // "source: problem": what a stage's validate() found wrong with the table's values together.
+  [[noreturn]] void reject(std::string_view problem) const;
 
  private:
   [[nodiscard]] const toml::node* find(std::string_view key);

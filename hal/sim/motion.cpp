@@ -17,7 +17,7 @@ Eigen::Matrix3d RobotState::rotation() const {
   return localize::attitude_rotation(roll_rad, pitch_rad, yaw_rad);
 }
 
-RobotMotion::RobotMotion(const BaseSpec& base, const Path& path, const Terrain& terrain)
+RobotMotion::RobotMotion(const config::BaseSpec& base, const Path& path, const Terrain& terrain)
     : base_(base), terrain_(terrain), waypoints_(path.waypoints_m) {
   BLOCKMAP_CHECK_MSG(waypoints_.size() >= 2, "a path needs two waypoints");
   cumulative_m_.push_back(0.0);

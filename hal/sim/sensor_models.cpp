@@ -53,7 +53,7 @@ protocol::segway_rmp::StatusCycle BaseSensing::sense(const RobotState& state, do
   return out;
 }
 
-GpsErrorProcess::GpsErrorProcess(const GpsSpec& spec)
+GpsErrorProcess::GpsErrorProcess(const config::GpsSpec& spec)
     : spec_(spec),
       // The two parts' variances add up to the horizontal RMS squared.
       slow_sigma_m_(

@@ -37,14 +37,14 @@ struct SimContext {
 // The Segway RMP: a status group of eight frames every 10 ms, 250 us apart on the bus.
 class SimRmp {
  public:
-  SimRmp(const BaseSpec& base, std::uint64_t seed);
+  SimRmp(const config::BaseSpec& base, std::uint64_t seed);
   [[nodiscard]] TimestampNs next_event_ns(const SimContext& context) const noexcept;
   void fire(SimContext& context, SimSink& sink, SimStats& stats);
 
  private:
   void make_cycle(SimContext& context, SimSink& sink, TimestampNs cycle_ns);
 
-  BaseSpec base_;
+  config::BaseSpec base_;
   BaseSensing sensing_;
   protocol::segway_rmp::Config codec_;
   SimRandom random_;
@@ -57,7 +57,7 @@ class SimRmp {
 // A SICK LMS2xx in continuous mode on its serial line.
 class SimLms {
  public:
-  SimLms(const LaserSpec& spec, std::size_t device, std::uint64_t seed);
+  SimLms(const config::LaserSpec& spec, std::size_t device, std::uint64_t seed);
   [[nodiscard]] TimestampNs next_event_ns(const SimContext& context) const noexcept;
   void fire(SimContext& context, SimSink& sink, SimStats& stats);
   [[nodiscard]] std::size_t memory_bytes() const noexcept;
@@ -70,7 +70,7 @@ class SimLms {
   void start_handshake(const SimContext& context, SimSink& sink);
   void measure_scan(SimContext& context, SimSink& sink, SimStats& stats);
 
-  LaserSpec spec_;
+  config::LaserSpec spec_;
   std::size_t device_;
   SimRandom random_;
   SerialWire wire_;
@@ -89,7 +89,7 @@ class SimLms {
 // An NMEA GPS receiver: an epoch every 1 / rate s, GGA + RMC + GSA a little later.
 class SimGps {
  public:
-  SimGps(const GpsSpec& spec, const Site& site, std::size_t device, std::uint64_t seed);
+  SimGps(const config::GpsSpec& spec, const Site& site, std::size_t device, std::uint64_t seed);
   [[nodiscard]] TimestampNs next_event_ns(const SimContext& context) const noexcept;
   void fire(SimContext& context, SimSink& sink, SimStats& stats);
   // Epochs in [from_ns, to_ns) are computed but not sent.
@@ -110,7 +110,7 @@ class SimGps {
   [[nodiscard]] bool blocked(const SimContext& context, const Vec3& antenna,
                              const Satellite& satellite) const;
 
-  GpsSpec spec_;
+  config::GpsSpec spec_;
   Site site_;
   LocalEnuFrame frame_;
   std::size_t device_;

@@ -40,7 +40,8 @@ double first_crossing(const std::vector<Vec2>& polygon, const Vec2& p, const Vec
 
 }  // namespace
 
-SimGps::SimGps(const GpsSpec& spec, const Site& site, std::size_t device, std::uint64_t seed)
+SimGps::SimGps(const config::GpsSpec& spec, const Site& site, std::size_t device,
+               std::uint64_t seed)
     : spec_(spec),
       site_(site),
       frame_(site.origin),

@@ -16,7 +16,7 @@ namespace {
 
 namespace lms = protocol::sick_lms2xx;
 
-constexpr double kMirrorTurnS = 1.0 / kLms2xxMirrorRateHz;
+constexpr double kMirrorTurnS = 1.0 / config::kLms2xxMirrorRateHz;
 constexpr double kProcessingS = 0.001;      // from the last beam to the telegram's first byte
 constexpr double kRequestAtS = 0.001;       // the host's request, 1 ms into the run
 constexpr double kReplyDelayS = 0.002;      // the scanner's ACK after the request
@@ -25,15 +25,15 @@ constexpr double kRadPerCentideg = std::numbers::pi / 18000.0;
 
 }  // namespace
 
-SimLms::SimLms(const LaserSpec& spec, std::size_t device, std::uint64_t seed)
+SimLms::SimLms(const config::LaserSpec& spec, std::size_t device, std::uint64_t seed)
     : spec_(spec),
       device_(device),
       random_(seed, "laser_" + spec.name),
       wire_(spec.baud, static_cast<TimestampNs>(spec.read_interval_s * 1e9),
             4 * lms::kMaxTelegramBytes),
       geometry_(lms::geometry(spec.variant)) {
-  turns_per_scan_ = mirror_turns_per_scan(spec.variant);
-  const double max_rate = kLms2xxMirrorRateHz / turns_per_scan_;
+  turns_per_scan_ = config::mirror_turns_per_scan(spec.variant);
+  const double max_rate = config::kLms2xxMirrorRateHz / turns_per_scan_;
   turns_between_scans_ = static_cast<std::uint64_t>(std::lround(max_rate / spec.scan_rate_hz)) *
                          static_cast<std::uint64_t>(turns_per_scan_);
   // The mirror's phase is not tied to the run's start; the first scan follows the handshake.
@@ -115,7 +115,7 @@ void SimLms::measure_scan(SimContext& context, SimSink& sink, SimStats& stats) {
   context.motion.advance_to(end_s + kProcessingS);
   const RobotState first = context.motion.state_at(start_s);
   const RobotState last = context.motion.state_at(end_s);
-  const Eigen::Matrix3d mount = spec_.mount.rotation();
+  const Eigen::Matrix3d mount = map::mount_rotation(spec_.mount);
   const Eigen::Matrix3d rotation_first = first.rotation() * mount;
   const Eigen::Matrix3d rotation_last = last.rotation() * mount;
   const Vec3 origin_first = first.position_m + first.rotation() * spec_.mount.position_m;

@@ -13,7 +13,7 @@ constexpr TimestampNs kFrameGapNs = 250'000;  // an 8-byte frame at 500 kbit/s, 
 
 }  // namespace
 
-SimRmp::SimRmp(const BaseSpec& base, std::uint64_t seed)
+SimRmp::SimRmp(const config::BaseSpec& base, std::uint64_t seed)
     : base_(base), sensing_(base), random_(seed, "rmp") {
   codec_.model = base.model;
   codec_.yaw_sign = base.yaw_sign;

@@ -3,64 +3,7 @@
 #include <algorithm>
 
 namespace blockmap::hal::sim {
-namespace {
-
-namespace lms = protocol::sick_lms2xx;
-
-devices::SegwayBaseConfig base_config(const RobotSpec& robot) {
-  devices::SegwayBaseConfig config;
-  config.rmp.model = robot.base.model;
-  config.rmp.yaw_sign = robot.base.yaw_sign;
-  return config;
-}
-
-}  // namespace
-
-// The device layer's view of a laser: its codec, and its timing when one mirror turn makes a
-// scan (the interlaced 0.5 and 0.25 deg variants sweep over several turns, in an order the
-// telegram does not give: their beams keep the scan's stamp).
-devices::Lms2xxScannerConfig lms2xx_config_for(const LaserSpec& spec) {
-  const lms::VariantGeometry geometry = lms::geometry(spec.variant);
-  const bool single_turn = spec.variant == lms::AngularVariant::k180Deg1Deg ||
-                           spec.variant == lms::AngularVariant::k100Deg1Deg;
-  devices::Lms2xxScannerConfig config;
-  if (single_turn) {
-    config = devices::lms2xx_single_turn_timing(geometry.field_deg,
-                                                geometry.resolution_centideg / 100.0);
-  }
-  config.codec.range_bits = spec.range_bits;
-  config.codec.variant = spec.variant;
-  return config;
-}
-
-pipeline::MapperConfig mapper_config_for(const RobotSpec& robot) {
-  pipeline::MapperConfig config;
-  config.localizer.antenna_m = robot.gps.antenna_m;
-  config.laser_count = std::min(robot.lasers.size(), pipeline::kMaxLasers);
-  // An LMS2xx scan has at most 401 beams (100 deg at 0.25 deg); a TiM's telegram says.
-  constexpr std::size_t kLms2xxMaxBeams = 401;
-  config.max_beams = kLms2xxMaxBeams;
-  config.scans_per_s = 0.0;
-  // The robot's wheels say where the ground is, so the ground far from the lasers can stay out
-  // of the window (ScanProjectorConfig says why; docs/mapper.md, Speed, 2026-12-02): 8 m keeps
-  // the dense ground near the robot, which makes the ground's plane, and halves benning's
-  // window. `[projection] far_ground_range_m = 0` keeps every ground return.
-  config.projection.axle_height_m = robot.base.wheel_radius_m;
-  config.projection.far_ground_range_m = 8.0;
-  for (std::size_t i = 0; i < config.laser_count; ++i) {
-    const LaserSpec& laser = robot.lasers[i];
-    const Mount& mount = laser.mount;
-    config.laser_mounts[i] =
-        map::SensorMount{mount.position_m, mount.roll_rad, mount.pitch_rad, mount.yaw_rad};
-    if (laser.protocol != LaserProtocol::kLms2xx) {
-      config.max_beams = msg::kMaxLaserBeams;
-    }
-    config.scans_per_s += laser.scan_rate_hz;  // at most one scan per mirror turn
-  }
-  return config;
-}
-
-SimulatedRobot::SimulatedRobot(const World& world, const RobotSpec& robot,
+SimulatedRobot::SimulatedRobot(const World& world, const config::RobotSpec& robot,
                                const SimOptions& options)
     : simulation_(world, robot, options),
       can_(clock_, {}, pending_, sent_),
@@ -79,15 +22,15 @@ SimulatedRobot::SimulatedRobot(const World& world, const RobotSpec& robot,
         return ptrs;
       }()),
       ports_(clock_, can_, serial_ptrs_),
-      base_(can_, odometry_, imu_, base_config(robot)),
+      base_(can_, odometry_, imu_, config::segway_base_config_for(robot)),
       gps_(*serial_.back(), fixes_, devices::GpsReceiverConfig{}),
       fix_converter_(world.site.origin),
       last_base_ns_(simulation_.start_ns()) {
   // Serial devices are the lasers, in the robot's order, then the GPS.
   for (std::size_t i = 0; i < robot.lasers.size(); ++i) {
     scans_.push_back(std::make_unique<SpscQueue<msg::LaserScan, 8>>());
-    lasers_.push_back(std::make_unique<devices::Lms2xxScanner>(*serial_[i], *scans_.back(),
-                                                               lms2xx_config_for(robot.lasers[i])));
+    lasers_.push_back(std::make_unique<devices::Lms2xxScanner>(
+        *serial_[i], *scans_.back(), config::lms2xx_config_for(robot.lasers[i])));
   }
   clock_.set_ns(simulation_.start_ns());
   static_cast<void>(base_.install_filters());

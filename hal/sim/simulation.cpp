@@ -10,7 +10,7 @@
 namespace blockmap::hal::sim {
 
 struct Simulation::Impl {
-  Impl(World world_in, RobotSpec robot_in, const SimOptions& options_in)
+  Impl(World world_in, config::RobotSpec robot_in, const SimOptions& options_in)
       : world(std::move(world_in)),
         robot(std::move(robot_in)),
         options(options_in),
@@ -49,7 +49,7 @@ struct Simulation::Impl {
   }
 
   World world;
-  RobotSpec robot;
+  config::RobotSpec robot;
   SimOptions options;
   Scene scene;
   RobotMotion motion;
@@ -66,14 +66,15 @@ struct Simulation::Impl {
 namespace {
 
 // The robot, once it is known to have only lasers the simulator can simulate.
-const RobotSpec& simulable(const RobotSpec& robot) {
-  require_lms2xx_lasers(robot, "the simulator");
+const config::RobotSpec& simulable(const config::RobotSpec& robot) {
+  config::require_lms2xx_lasers(robot, "the simulator");
   return robot;
 }
 
 }  // namespace
 
-Simulation::Simulation(const World& world, const RobotSpec& robot, const SimOptions& options)
+Simulation::Simulation(const World& world, const config::RobotSpec& robot,
+                       const SimOptions& options)
     : impl_(std::make_unique<Impl>(world, simulable(robot), options)) {}
 
 Simulation::~Simulation() = default;
@@ -138,7 +139,7 @@ const Scene& Simulation::scene() const noexcept {
 const RobotMotion& Simulation::motion() const noexcept {
   return impl_->motion;
 }
-const RobotSpec& Simulation::robot() const noexcept {
+const config::RobotSpec& Simulation::robot() const noexcept {
   return impl_->robot;
 }
 const World& Simulation::world() const noexcept {

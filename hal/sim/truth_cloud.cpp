@@ -52,7 +52,7 @@ void TruthCloudSink::on_beam(std::size_t laser, const BeamTruth& beam) {
   points_.emplace_back((beam.origin_m + beam.direction * beam.measured_range_m).cast<float>());
 }
 
-TruthCloud simulate_truth_cloud(const World& world, const RobotSpec& robot,
+TruthCloud simulate_truth_cloud(const World& world, const config::RobotSpec& robot,
                                 const SimOptions& options, PoseNoise noise) {
   TruthCloudSink sink(noise, options.seed);
   Simulation simulation(world, robot, options);

@@ -14,15 +14,16 @@ Eigen::Vector3d position_of(const localize::Pose3& pose) noexcept {
 
 }  // namespace
 
+Eigen::Matrix3d mount_rotation(const SensorMount& mount) noexcept {
+  return localize::attitude_rotation(mount.roll_rad, mount.pitch_rad, mount.yaw_rad);
+}
+
 Eigen::Matrix3d robot_rotation(const localize::Pose3& pose) noexcept {
   return localize::attitude_rotation(pose.roll_rad, pose.pitch_rad, pose.yaw_rad);
 }
 
 ScanProjector::ScanProjector(const SensorMount& mount, const ScanProjectorConfig& config) noexcept
-    : mount_(mount),
-      config_(config),
-      mount_rotation_(localize::attitude_rotation(mount.roll_rad, mount.pitch_rad, mount.yaw_rad)) {
-}
+    : mount_(mount), config_(config), mount_rotation_(mount_rotation(mount)) {}
 
 TimestampNs ScanProjector::beam_stamp_ns(const msg::LaserScan& scan, std::uint32_t beam) noexcept {
   return scan.header.stamp_ns + ns_from_seconds(static_cast<double>(beam) * scan.time_increment_s);

@@ -309,17 +309,7 @@ void VoxelWindow::add_point(const Eigen::Vector3f& point_m) noexcept {
     touched_flag_[sample] = 1;
     touched_[touched_count_++] = sample;
   }
-  planes::VoxelSums& sums = samples_[sample];
-  ++sums.point_count;
-  sums.sum_m[0] += local.x();
-  sums.sum_m[1] += local.y();
-  sums.sum_m[2] += local.z();
-  sums.sum_outer_m2[0] += local.x() * local.x();
-  sums.sum_outer_m2[1] += local.x() * local.y();
-  sums.sum_outer_m2[2] += local.x() * local.z();
-  sums.sum_outer_m2[3] += local.y() * local.y();
-  sums.sum_outer_m2[4] += local.y() * local.z();
-  sums.sum_outer_m2[5] += local.z() * local.z();
+  samples_[sample].add_point_m(local);
   ++counters_.points_added;
 }
 

@@ -24,7 +24,7 @@ void Mapper::init(Arena& arena, const MapperConfig& config) {
   for (std::size_t i = 0; i < config.laser_count; ++i) {
     projectors_[i] = map::ScanProjector(config.laser_mounts[i], config.projection);
   }
-  window_.init(arena, config.window);
+  window_.init(arena, window_config(config));
   detector_.init(arena, detector_config(config));
   registry_.init(arena, registry_config(config));
   if (path_on_ && config.rigid_view) {
@@ -51,7 +51,7 @@ std::size_t Mapper::arena_bytes(const MapperConfig& config) noexcept {
   return ScanPoses::arena_bytes(config.pose_source, config.localizer, config.max_external_poses) +
          ScanCorrection::arena_bytes(matcher_config(config)) +
          (solves_the_path(config) ? RigidPathSolver::arena_bytes(config.path) : 0) +
-         map::VoxelWindow::arena_bytes(config.window) +
+         map::VoxelWindow::arena_bytes(window_config(config)) +
          planes::PlaneDetector::arena_budget_bytes(detector_config(config)) +
          map::PlaneRegistry::arena_bytes(registry_config(config)) +
          (config.fit_buildings

@@ -41,14 +41,21 @@ std::size_t free_space_cells(const MapperConfig& config) noexcept {
   return config.fit_buildings ? across * across : 0;
 }
 
+// The window's voxels are the detector's samples: it hands them over as they are.
+map::VoxelWindowConfig window_config(const MapperConfig& config) noexcept {
+  map::VoxelWindowConfig window = config.window;
+  window.voxel_size_m = config.planes.sample_size_m;
+  return window;
+}
+
 // The detector's configuration inside the mapper: it holds what the window holds. With level
 // lasers only, a wall is a line in the map: the vertical plane through it.
 planes::PlanesConfig detector_config(const MapperConfig& config) noexcept {
   planes::PlanesConfig planes = config.planes;
   planes.walls_from_lines = planes.walls_from_lines || only_level_lasers(config);
   planes.max_samples = config.window.max_samples;
-  planes.max_blocks = planes.max_blocks == 0 ? window_blocks(planes.max_samples)
-                                             : std::min(planes.max_blocks, planes.max_samples);
+  planes.max_blocks =
+      planes.max_blocks == 0 ? window_blocks(planes.max_samples) : planes.max_blocks;
   planes.keep_shapes = config.incremental_extraction;
   return planes;
 }
@@ -92,30 +99,17 @@ std::size_t scan_queue_slots(const MapperConfig& config) noexcept {
                   static_cast<std::size_t>(std::ceil(held_s * config.scans_per_s)));
 }
 
-std::string validate(const MapperConfig& config) {
+namespace {
+
+// Each stage's own checks, on what it is configured with.
+std::string validate_stages(const MapperConfig& config) {
   if (std::string problem = localize::validate(config.localizer); !problem.empty()) {
     return problem;
   }
   if (std::string problem = localize::validate(config.scan_matching); !problem.empty()) {
     return problem;
   }
-  if (solves_the_path(config)) {
-    if (std::string problem = localize::validate(config.path); !problem.empty()) {
-      return problem;
-    }
-    if (!matcher_config(config).enabled) {
-      return "mapper: rigid_path needs scan matching with the localizer's live poses "
-             "([scan_matching] enabled, no pose lag)";
-    }
-    if (!(config.rigid_view_change_m > 0.0)) {
-      return "mapper: rigid_path view_change_m must be positive";
-    }
-    if (config.free_space.tiles_across > 0) {
-      return "mapper: rigid_path would move the walls off the free-space grid, which stays "
-             "where the scans were drawn ([free_space] tiles_across = 0, or rigid_path off)";
-    }
-  }
-  if (std::string problem = map::validate(config.window); !problem.empty()) {
+  if (std::string problem = map::validate(window_config(config)); !problem.empty()) {
     return problem;
   }
   if (std::string problem = planes::validate(detector_config(config)); !problem.empty()) {
@@ -130,9 +124,33 @@ std::string validate(const MapperConfig& config) {
   if (std::string problem = map::validate(config.free_space); !problem.empty()) {
     return problem;
   }
-  if (std::abs(config.window.voxel_size_m - config.planes.sample_size_m) > 1e-9) {
-    return "mapper: window.voxel_size_m must equal planes.sample_size_m";
+  return {};
+}
+
+// What the whole run's path needs of the rest.
+std::string validate_rigid_path(const MapperConfig& config) {
+  if (!solves_the_path(config)) {
+    return {};
   }
+  if (std::string problem = localize::validate(config.path); !problem.empty()) {
+    return problem;
+  }
+  if (!matcher_config(config).enabled) {
+    return "mapper: rigid_path needs scan matching with the localizer's live poses "
+           "([scan_matching] enabled, no pose lag)";
+  }
+  if (!(config.rigid_view_change_m > 0.0)) {
+    return "mapper: rigid_path view_change_m must be positive";
+  }
+  if (config.free_space.tiles_across > 0) {
+    return "mapper: rigid_path would move the walls off the free-space grid, which stays "
+           "where the scans were drawn ([free_space] tiles_across = 0, or rigid_path off)";
+  }
+  return {};
+}
+
+// The mapper's own keys.
+std::string validate_mapper(const MapperConfig& config) {
   if (config.laser_count > kMaxLasers) {
     return "mapper: at most 4 lasers";
   }
@@ -159,6 +177,17 @@ std::string validate(const MapperConfig& config) {
       !std::isfinite(config.projection.axle_height_m)) {
     return "mapper: far_ground_range_m and ground_band_m must not be negative, axle_height_m "
            "finite";
+  }
+  return {};
+}
+
+}  // namespace
+
+std::string validate(const MapperConfig& config) {
+  for (const auto check : {validate_stages, validate_rigid_path, validate_mapper}) {
+    if (std::string problem = check(config); !problem.empty()) {
+      return problem;
+    }
   }
   return {};
 }

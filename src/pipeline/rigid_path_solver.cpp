@@ -181,50 +181,12 @@ map::PlaneMove RigidPathSolver::move_of(const msg::PlanePatch& plane,
 void RigidPathSolver::tie_walls_to_earlier_passes(std::span<const msg::PlanePatch> detected,
                                                   const map::PlaneRegistry& registry,
                                                   TimestampNs stamp_ns) noexcept {
-  // A pass's poses put its walls off by the receiver's slow error of that time, up to a
-  // couple of metres, and another pass's by another: the same wall drawn twice lies up to
-  // kGateM apart, parallel to within kGateAngle. It must overlap the earlier drawing by
-  // kMinOverlapM along the wall and in height (the walls of a street's next building are in
-  // line with it, but further on), and the earlier pass must have ended kOtherPassNs before
-  // (a wall left behind by this pass is no earlier pass). Of several, the nearest.
-  constexpr double kGateM = 2.0;
-  const double cos_gate_angle = std::cos(radians_from_degrees(5.0));
-  constexpr double kMinOverlapM = 2.0;
-  constexpr double kMinHeightOverlapM = 0.5;
-  constexpr TimestampNs kOtherPassNs = 2 * map::SeenSpans::kJoinGapNs;
-  // The later look's keyframe: one of this pass, the last half minute.
-  constexpr TimestampNs kThisPassNs = 30 * kNanosecondsPerSecond;
   const std::span<const msg::PlanePatch> finals = registry.final_planes();
   for (const msg::PlanePatch& wall : detected) {
     if (wall.kind != msg::PlaneKind::kWall || wall.normal.head<2>().norm() < 0.5) {
       continue;
     }
-    const Eigen::Vector2d normal = wall.normal.head<2>().normalized();
-    const Eigen::Vector2d along(-normal.y(), normal.x());
-    const WallExtent extent = wall_extent(wall, along);
-    std::size_t best = finals.size();
-    double best_offset_m = kGateM;
-    for (std::size_t j = 0; j < finals.size(); ++j) {
-      const msg::PlanePatch& earlier = finals[j];
-      const map::SeenSpans& seen = registry.seen_spans(j);
-      if (earlier.kind != msg::PlaneKind::kWall || seen.count == 0 ||
-          stamp_ns - seen.last_ns() < kOtherPassNs ||
-          std::abs(earlier.normal.head<2>().normalized().dot(normal)) < cos_gate_angle) {
-        continue;
-      }
-      const double offset_m = std::abs(earlier.normal.dot(wall.centroid_m) - earlier.d_m);
-      if (offset_m >= best_offset_m) {
-        continue;
-      }
-      const WallExtent before = wall_extent(earlier, along);
-      if (overlap_m(extent.from_m, extent.to_m, before.from_m, before.to_m) < kMinOverlapM ||
-          overlap_m(extent.low_m, extent.high_m, before.low_m, before.high_m) <
-              kMinHeightOverlapM) {
-        continue;
-      }
-      best = j;
-      best_offset_m = offset_m;
-    }
+    const std::size_t best = earlier_drawing_of(wall, registry, stamp_ns);
     if (best == finals.size()) {
       continue;
     }
@@ -232,7 +194,7 @@ void RigidPathSolver::tie_walls_to_earlier_passes(std::span<const msg::PlanePatc
     const map::SeenSpans& seen = registry.seen_spans(best);
     localize::WallLook before{0, earlier.normal.head<2>().normalized(),
                               earlier.centroid_m.head<2>()};
-    localize::WallLook now{0, normal, wall.centroid_m.head<2>()};
+    localize::WallLook now{0, wall.normal.head<2>().normalized(), wall.centroid_m.head<2>()};
     Eigen::Vector2d before_from_m;
     Eigen::Vector2d now_from_m;
     if (!keyframe_that_drew(before.point_m, seen.first_ns(), seen.last_ns(), &seen, before.stamp_ns,
@@ -251,6 +213,50 @@ void RigidPathSolver::tie_walls_to_earlier_passes(std::span<const msg::PlanePatc
     }
     path_.tie(earlier.id, before, now);
   }
+}
+
+std::size_t RigidPathSolver::earlier_drawing_of(const msg::PlanePatch& wall,
+                                                const map::PlaneRegistry& registry,
+                                                TimestampNs stamp_ns) noexcept {
+  // A pass's poses put its walls off by the receiver's slow error of that time, up to a
+  // couple of metres, and another pass's by another: the same wall drawn twice lies up to
+  // kGateM apart, parallel to within kGateAngleDeg. It must overlap the earlier drawing by
+  // kMinOverlapM along the wall and in height (the walls of a street's next building are in
+  // line with it, but further on), and the earlier pass must have ended kOtherPassNs before
+  // (a wall left behind by this pass is no earlier pass). Of several, the nearest.
+  constexpr double kGateM = 2.0;
+  constexpr double kGateAngleDeg = 5.0;
+  constexpr double kMinOverlapM = 2.0;
+  constexpr double kMinHeightOverlapM = 0.5;
+  constexpr TimestampNs kOtherPassNs = 2 * map::SeenSpans::kJoinGapNs;
+  const double cos_gate_angle = std::cos(radians_from_degrees(kGateAngleDeg));
+  const std::span<const msg::PlanePatch> finals = registry.final_planes();
+  const Eigen::Vector2d normal = wall.normal.head<2>().normalized();
+  const Eigen::Vector2d along(-normal.y(), normal.x());
+  const WallExtent extent = wall_extent(wall, along);
+  std::size_t best = finals.size();
+  double best_offset_m = kGateM;
+  for (std::size_t j = 0; j < finals.size(); ++j) {
+    const msg::PlanePatch& earlier = finals[j];
+    const map::SeenSpans& seen = registry.seen_spans(j);
+    if (earlier.kind != msg::PlaneKind::kWall || seen.count == 0 ||
+        stamp_ns - seen.last_ns() < kOtherPassNs ||
+        std::abs(earlier.normal.head<2>().normalized().dot(normal)) < cos_gate_angle) {
+      continue;
+    }
+    const double offset_m = std::abs(earlier.normal.dot(wall.centroid_m) - earlier.d_m);
+    if (offset_m >= best_offset_m) {
+      continue;
+    }
+    const WallExtent before = wall_extent(earlier, along);
+    if (overlap_m(extent.from_m, extent.to_m, before.from_m, before.to_m) < kMinOverlapM ||
+        overlap_m(extent.low_m, extent.high_m, before.low_m, before.high_m) < kMinHeightOverlapM) {
+      continue;
+    }
+    best = j;
+    best_offset_m = offset_m;
+  }
+  return best;
 }
 
 bool RigidPathSolver::keyframe_that_drew(const Eigen::Vector2d& point_m, TimestampNs from_ns,

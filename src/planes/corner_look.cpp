@@ -71,6 +71,8 @@ constexpr std::int32_t kTaken = std::numeric_limits<std::int32_t>::max();
 
 }  // namespace
 
+// One function, longer than most: the region's bounds, the walk over its blocks and the test
+// of each sample share the corner's frame.
 CornerLook::Gathered CornerLook::gather(const Corner& corner, const Eigen::Vector3d& normal,
                                         double offset_m, double band_m, double reach_to_m,
                                         std::span<const NearPlane> near, std::int32_t take_as,
@@ -513,6 +515,8 @@ bool CornerLook::try_step(std::span<const msg::PlanePatch> planes, const Corner&
   return false;
 }
 
+// One function, longer than most: each wall's two ends looked past in turn, in the wall's own
+// frame, with the steps found handed to the merger at the end.
 CornerLookCounters CornerLook::look(std::span<const msg::PlanePatch> planes, double surface_noise_m,
                                     VoxelGrid& voxels, PlaneMerger& merger) noexcept {
   voxels_ = &voxels;

@@ -84,6 +84,8 @@ bool HoughAccumulator::is_local_maximum(std::uint32_t row, std::uint32_t d_bin,
   return true;
 }
 
+// One function, longer than most: the walk over the touched cells and the short sorted list
+// of the strongest peaks it keeps.
 std::size_t HoughAccumulator::find_peaks(float min_votes, std::span<HoughPeak> out) const noexcept {
   std::size_t count = 0;
   const auto consider_bin = [&](std::uint32_t row, std::uint32_t d_bin) {

@@ -68,7 +68,7 @@ std::uint32_t whole_ratio(double a, double b) {
 // Sections are kept (SectionCache) with kept shapes, when they are small enough.
 bool keeps_sections(const PlanesConfig& config) noexcept {
   return config.keep_shapes &&
-         SectionCache::supports(whole_ratio(config.section_size_m, config.section_stride_m));
+         SectionCache::supports(whole_ratio(config.section_size_m, config.section_stride_m()));
 }
 
 }  // namespace
@@ -84,8 +84,8 @@ void PlaneDetector::init(Arena& arena, const PlanesConfig& config) {
     voxels_.keep_shapes(arena);
   }
   sections_.init(arena, block_capacity(config),
-                 whole_ratio(config.section_size_m, config.section_stride_m),
-                 config.section_stride_m);
+                 whole_ratio(config.section_size_m, config.section_stride_m()),
+                 config.section_stride_m());
   // d relative to the section centre reaches half the section's diagonal.
   const double half_range_m = 0.5 * std::sqrt(3.0) * config.section_size_m + config.d_bin_m;
   // Votes of a section: each sample votes for at most the kernel's rows, or all rows.
@@ -116,7 +116,7 @@ std::size_t PlaneDetector::arena_budget_bytes(const PlanesConfig& config) noexce
       (config.keep_shapes ? VoxelGrid::shape_cache_bytes(config.max_samples, block_capacity(config))
                           : 0));
   const auto sections = static_cast<double>(SectionGrid::arena_bytes(
-      block_capacity(config), whole_ratio(config.section_size_m, config.section_stride_m)));
+      block_capacity(config), whole_ratio(config.section_size_m, config.section_stride_m())));
   const double accumulator =
       grid.rows * d_bins * sizeof(float) +
       static_cast<double>(config.max_samples_per_section) * 32 * sizeof(std::uint32_t);

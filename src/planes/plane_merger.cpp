@@ -363,86 +363,11 @@ void PlaneMerger::drop_excluded() noexcept {
 }
 
 void PlaneMerger::label_and_emit() noexcept {
-  const double sin_vertical = sin_deg(config_.label_tolerance_deg);
-  const double cos_horizontal = cos_deg(config_.label_tolerance_deg);
-  std::span<std::uint32_t> order = member_order_.first(candidate_count_);  // by support, from merge
-  // The ground: the lowest horizontal plane with at least a quarter of the largest one's points.
-  double largest_horizontal = 0.0;
-  for (const std::uint32_t i : order) {
-    const Candidate& c = candidates_[i];
-    if (c.alive && std::abs(c.fit.normal_unit.z()) >= cos_horizontal) {
-      largest_horizontal = std::max(largest_horizontal, c.moments.weight);
-    }
-  }
-  Candidate* ground = nullptr;
-  for (const std::uint32_t i : order) {
-    Candidate& c = candidates_[i];
-    if (c.alive && std::abs(c.fit.normal_unit.z()) >= cos_horizontal &&
-        c.moments.weight >= 0.25 * largest_horizontal &&
-        (ground == nullptr || c.fit.centroid_m.z() < ground->fit.centroid_m.z())) {
-      ground = &c;
-    }
-  }
-  const auto height_above_ground = [&](const Eigen::Vector3d& p) {
-    const Eigen::Vector3d& n = ground->fit.normal_unit;
-    const double ground_z = (ground->fit.d_m - n.x() * p.x() - n.y() * p.y()) / n.z();
-    return p.z() - ground_z;
-  };
-  // The ground is one surface under everything: far pieces of it, cut off from the rest by
-  // buildings or by the reach of the lasers, are merged into it however far away they lie.
+  Candidate* ground = find_ground();
   if (ground != nullptr) {
-    for (const std::uint32_t i : order) {
-      Candidate& c = candidates_[i];
-      if (c.alive && &c != ground && std::abs(c.fit.normal_unit.z()) >= cos_horizontal &&
-          std::abs(height_above_ground(c.fit.centroid_m)) <= config_.ground_step_m) {
-        absorb(*ground, c);
-        c.alive = false;
-      }
-    }
+    absorb_far_ground(*ground);
   }
-  output_count_ = 0;
-  for (const std::uint32_t i : order) {
-    const Candidate& c = candidates_[i];
-    if (!c.alive || c.moments.weight < config_.min_reported_support) {
-      continue;
-    }
-    msg::PlanePatch plane;
-    Eigen::Vector3d n = c.fit.normal_unit;
-    double d = c.fit.d_m;
-    if ((std::abs(n.z()) >= 0.5 && n.z() < 0.0) || (std::abs(n.z()) < 0.5 && d < 0.0)) {
-      n = -n;  // up for horizontal planes, away from the frame's origin for the others
-      d = -d;
-    }
-    if (std::abs(n.z()) <= sin_vertical) {
-      const auto [u, v] = plane_basis(n);
-      double u_min = 1e300, u_max = -1e300, z_min = 1e300, z_max = -1e300;
-      for (std::size_t k = 0; k < c.polygon_size; ++k) {
-        const double along = u.dot(c.polygon_m[k]);
-        u_min = std::min(u_min, along);
-        u_max = std::max(u_max, along);
-        z_min = std::min(z_min, c.polygon_m[k].z());
-        z_max = std::max(z_max, c.polygon_m[k].z());
-      }
-      // A wall seen as a line (walls_from_lines) has no observed height: its width decides.
-      const bool big = (c.fit.from_line || z_max - z_min >= config_.min_wall_height_m) &&
-                       u_max - u_min >= config_.min_wall_width_m;
-      plane.kind = big ? msg::PlaneKind::kWall : msg::PlaneKind::kOther;
-    } else if (std::abs(n.z()) >= cos_horizontal && ground != nullptr) {
-      const double height = height_above_ground(c.fit.centroid_m);
-      plane.kind = std::abs(height) <= config_.ground_step_m ? msg::PlaneKind::kGround
-                   : height >= config_.min_roof_height_m     ? msg::PlaneKind::kRoof
-                                                             : msg::PlaneKind::kOther;
-    }
-    plane.normal = n;
-    plane.d_m = d;
-    plane.support = c.moments.weight;
-    plane.rmse_m = c.fit.rmse_m;
-    plane.centroid_m = c.fit.centroid_m;
-    plane.polygon_size = c.polygon_size;
-    std::copy(c.polygon_m.begin(), c.polygon_m.begin() + c.polygon_size, plane.polygon_m.begin());
-    plane.id = i;  // the candidate, until the planes are numbered below
-    output_[output_count_++] = plane;
-  }
+  emit(ground);
   // Largest first, numbered from 1.
   std::sort(output_.begin(), output_.begin() + static_cast<std::ptrdiff_t>(output_count_),
             [](const msg::PlanePatch& a, const msg::PlanePatch& b) {
@@ -455,6 +380,103 @@ void PlaneMerger::label_and_emit() noexcept {
   for (std::size_t i = 0; i < output_count_; ++i) {
     output_moments_[i] = candidates_[output_[i].id].moments;
     output_[i].id = static_cast<std::uint32_t>(i + 1);
+  }
+}
+
+bool PlaneMerger::horizontal(const Candidate& c) const noexcept {
+  return std::abs(c.fit.normal_unit.z()) >= cos_deg(config_.label_tolerance_deg);
+}
+
+double PlaneMerger::height_above(const Candidate& ground, const Eigen::Vector3d& p) noexcept {
+  const Eigen::Vector3d& n = ground.fit.normal_unit;
+  const double ground_z = (ground.fit.d_m - n.x() * p.x() - n.y() * p.y()) / n.z();
+  return p.z() - ground_z;
+}
+
+PlaneMerger::Candidate* PlaneMerger::find_ground() noexcept {
+  // The lowest horizontal plane with at least a quarter of the largest one's points.
+  const std::span<const std::uint32_t> order = member_order_.first(candidate_count_);
+  double largest_horizontal = 0.0;
+  for (const std::uint32_t i : order) {
+    const Candidate& c = candidates_[i];
+    if (c.alive && horizontal(c)) {
+      largest_horizontal = std::max(largest_horizontal, c.moments.weight);
+    }
+  }
+  Candidate* ground = nullptr;
+  for (const std::uint32_t i : order) {
+    Candidate& c = candidates_[i];
+    if (c.alive && horizontal(c) && c.moments.weight >= 0.25 * largest_horizontal &&
+        (ground == nullptr || c.fit.centroid_m.z() < ground->fit.centroid_m.z())) {
+      ground = &c;
+    }
+  }
+  return ground;
+}
+
+void PlaneMerger::absorb_far_ground(Candidate& ground) noexcept {
+  // The ground is one surface under everything: far pieces of it, cut off from the rest by
+  // buildings or by the reach of the lasers, are merged into it however far away they lie.
+  for (const std::uint32_t i : member_order_.first(candidate_count_)) {
+    Candidate& c = candidates_[i];
+    if (c.alive && &c != &ground && horizontal(c) &&
+        std::abs(height_above(ground, c.fit.centroid_m)) <= config_.ground_step_m) {
+      absorb(ground, c);
+      c.alive = false;
+    }
+  }
+}
+
+msg::PlaneKind PlaneMerger::kind_of(const Candidate& c, const Eigen::Vector3d& normal,
+                                    const Candidate* ground) const noexcept {
+  if (std::abs(normal.z()) <= sin_deg(config_.label_tolerance_deg)) {
+    const auto [u, v] = plane_basis(normal);
+    double u_min = 1e300, u_max = -1e300, z_min = 1e300, z_max = -1e300;
+    for (std::size_t k = 0; k < c.polygon_size; ++k) {
+      const double along = u.dot(c.polygon_m[k]);
+      u_min = std::min(u_min, along);
+      u_max = std::max(u_max, along);
+      z_min = std::min(z_min, c.polygon_m[k].z());
+      z_max = std::max(z_max, c.polygon_m[k].z());
+    }
+    // A wall seen as a line (walls_from_lines) has no observed height: its width decides.
+    const bool big = (c.fit.from_line || z_max - z_min >= config_.min_wall_height_m) &&
+                     u_max - u_min >= config_.min_wall_width_m;
+    return big ? msg::PlaneKind::kWall : msg::PlaneKind::kOther;
+  }
+  if (std::abs(normal.z()) >= cos_deg(config_.label_tolerance_deg) && ground != nullptr) {
+    const double height = height_above(*ground, c.fit.centroid_m);
+    return std::abs(height) <= config_.ground_step_m ? msg::PlaneKind::kGround
+           : height >= config_.min_roof_height_m     ? msg::PlaneKind::kRoof
+                                                     : msg::PlaneKind::kOther;
+  }
+  return msg::PlaneKind::kOther;
+}
+
+void PlaneMerger::emit(const Candidate* ground) noexcept {
+  output_count_ = 0;
+  for (const std::uint32_t i : member_order_.first(candidate_count_)) {
+    const Candidate& c = candidates_[i];
+    if (!c.alive || c.moments.weight < config_.min_reported_support) {
+      continue;
+    }
+    msg::PlanePatch plane;
+    Eigen::Vector3d n = c.fit.normal_unit;
+    double d = c.fit.d_m;
+    if ((std::abs(n.z()) >= 0.5 && n.z() < 0.0) || (std::abs(n.z()) < 0.5 && d < 0.0)) {
+      n = -n;  // up for horizontal planes, away from the frame's origin for the others
+      d = -d;
+    }
+    plane.kind = kind_of(c, n, ground);
+    plane.normal = n;
+    plane.d_m = d;
+    plane.support = c.moments.weight;
+    plane.rmse_m = c.fit.rmse_m;
+    plane.centroid_m = c.fit.centroid_m;
+    plane.polygon_size = c.polygon_size;
+    std::copy(c.polygon_m.begin(), c.polygon_m.begin() + c.polygon_size, plane.polygon_m.begin());
+    plane.id = i;  // the candidate, until the planes are numbered below
+    output_[output_count_++] = plane;
   }
 }
 

@@ -10,20 +10,15 @@ bool whole_multiple(double a, double b) {
   return ratio >= 1.0 - 1e-9 && std::abs(ratio - std::round(ratio)) < 1e-6;
 }
 
-}  // namespace
-
-std::string validate(const PlanesConfig& c) {
+// The samples, the sections and the Hough grid.
+std::string validate_grids(const PlanesConfig& c) {
   if (!(c.sample_size_m > 0.0)) {
     return "sample_size_m must be > 0";
   }
-  if (std::abs(c.section_stride_m - 4.0 * c.sample_size_m) > 1e-6 * c.sample_size_m) {
-    return "section_stride_m must be 4 x sample_size_m (sections are made of the samples' 4 x 4 "
-           "x 4 blocks)";
+  if (!whole_multiple(c.section_size_m, c.section_stride_m())) {
+    return "section_size_m must be a whole multiple of the section stride (4 x sample_size_m)";
   }
-  if (!whole_multiple(c.section_size_m, c.section_stride_m)) {
-    return "section_size_m must be a whole multiple of section_stride_m";
-  }
-  if (std::lround(c.section_size_m / c.section_stride_m) > 4) {
+  if (std::lround(c.section_size_m / c.section_stride_m()) > 4) {
     return "section_size_m may be at most 4 strides (each point is in (size/stride)^3 sections)";
   }
   if (!(c.d_bin_m > 0.0) || c.d_bin_m > c.section_size_m) {
@@ -35,6 +30,11 @@ std::string validate(const PlanesConfig& c) {
   if (!(c.orientation_tolerance_deg >= 0.0 && c.orientation_tolerance_deg < 45.0)) {
     return "orientation_tolerance_deg must be in [0, 45)";
   }
+  return {};
+}
+
+// Who votes, and what a peak needs.
+std::string validate_votes(const PlanesConfig& c) {
   if (!(c.normal_kernel_deg > 0.0 && c.normal_kernel_deg <= 30.0)) {
     return "normal_kernel_deg must be in (0, 30]";
   }
@@ -52,6 +52,11 @@ std::string validate(const PlanesConfig& c) {
   if (c.max_planes_per_section < 1 || c.max_planes_per_section > 64) {
     return "max_planes_per_section must be in [1, 64]";
   }
+  return {};
+}
+
+// Refitting, merging, the corner look and the labels.
+std::string validate_fitting(const PlanesConfig& c) {
   if (!(c.max_inlier_distance_m >= c.inlier_distance_m)) {
     return "max_inlier_distance_m must be at least inlier_distance_m";
   }
@@ -78,6 +83,11 @@ std::string validate(const PlanesConfig& c) {
   if (!(c.label_tolerance_deg > 0.0 && c.label_tolerance_deg < 45.0)) {
     return "label_tolerance_deg must be in (0, 45)";
   }
+  return {};
+}
+
+// What the arena holds.
+std::string validate_capacities(const PlanesConfig& c) {
   if (c.max_samples < 1 || c.max_samples_per_section < 1 || c.max_patches < 1 || c.max_planes < 1 ||
       (c.keep_shapes && c.max_kept_sections < 1)) {
     return "capacities must be >= 1";
@@ -90,6 +100,17 @@ std::string validate(const PlanesConfig& c) {
   }
   if (c.max_patches < c.max_planes) {
     return "max_patches must be >= max_planes";
+  }
+  return {};
+}
+
+}  // namespace
+
+std::string validate(const PlanesConfig& c) {
+  for (const auto check : {validate_grids, validate_votes, validate_fitting, validate_capacities}) {
+    if (std::string problem = check(c); !problem.empty()) {
+      return problem;
+    }
   }
   return {};
 }

@@ -195,13 +195,12 @@ void VoxelGrid::prefetch_block_cells(std::uint32_t block) const noexcept {
 
 void VoxelGrid::lay_out_all_blocks() noexcept {
   count_ = 0;
-  constexpr std::size_t kAhead = 16;
-  for (std::size_t i = 0; i < std::min(kAhead, block_count_); ++i) {
+  for (std::size_t i = 0; i < std::min(kPrefetchAheadBlocks, block_count_); ++i) {
     prefetch_block_cells(block_order_[i].block);
   }
   for (std::size_t i = 0; i < block_count_; ++i) {
-    if (i + kAhead < block_count_) {
-      prefetch_block_cells(block_order_[i + kAhead].block);
+    if (i + kPrefetchAheadBlocks < block_count_) {
+      prefetch_block_cells(block_order_[i + kPrefetchAheadBlocks].block);
     }
     const std::uint32_t block = block_order_[i].block;
     block_first_[block] = static_cast<std::uint32_t>(count_);
@@ -227,24 +226,36 @@ void VoxelGrid::move_samples(std::size_t from, std::size_t to, std::size_t count
 }
 
 void VoxelGrid::lay_out_changed_blocks() noexcept {
-  const auto reloaded = [this](const BlockOrder& entry) {
-    return entry.first == kNotLaidOut || (block_flags_[entry.block] & kChanged) != 0;
-  };
-  // The table slots of the changed blocks a few places on are fetched while these are read.
-  constexpr std::size_t kAhead = 16;
-  const auto prefetch_reloaded = [&](std::size_t i) {
-    if (i < block_count_ && reloaded(block_order_[i])) {
-      prefetch_block_cells(block_order_[i].block);
-    }
-  };
-  // Where each block's samples go: a changed block's live cells are read from the table, a
-  // kept one's are as they were. block_first_ takes the new place, the entry keeps the old.
-  count_ = 0;
-  for (std::size_t i = 0; i < kAhead; ++i) {
-    prefetch_reloaded(i);
+  place_blocks_keeping_order();
+  move_kept_blocks();
+  load_changed_blocks();
+}
+
+bool VoxelGrid::reloaded(const BlockOrder& entry) const noexcept {
+  return entry.first == kNotLaidOut || (block_flags_[entry.block] & kChanged) != 0;
+}
+
+void VoxelGrid::prefetch_if_reloaded(std::size_t i) const noexcept {
+  if (i < block_count_ && reloaded(block_order_[i])) {
+    prefetch_block_cells(block_order_[i].block);
   }
+}
+
+void VoxelGrid::prefetch_reloaded_ahead_of(std::size_t i) const noexcept {
+  if (i == 0) {
+    for (std::size_t k = 0; k < kPrefetchAheadBlocks; ++k) {
+      prefetch_if_reloaded(k);
+    }
+  }
+  prefetch_if_reloaded(i + kPrefetchAheadBlocks);
+}
+
+void VoxelGrid::place_blocks_keeping_order() noexcept {
+  // A changed block's live cells are read from the table, a kept one's are as they were.
+  // block_first_ takes the new place, the entry keeps the old.
+  count_ = 0;
   for (std::size_t i = 0; i < block_count_; ++i) {
-    prefetch_reloaded(i + kAhead);
+    prefetch_reloaded_ahead_of(i);
     const BlockOrder& entry = block_order_[i];
     if (reloaded(entry)) {
       live_masks_[entry.block] = live_cells(entry.block);
@@ -252,6 +263,9 @@ void VoxelGrid::lay_out_changed_blocks() noexcept {
     block_first_[entry.block] = static_cast<std::uint32_t>(count_);
     count_ += static_cast<std::size_t>(std::popcount(live_masks_[entry.block]));
   }
+}
+
+void VoxelGrid::move_kept_blocks() noexcept {
   // Kept blocks move in runs (neighbours in the layout with the same shift): the ones that
   // move towards the front in order, then the ones that move back in reverse order. The
   // order is the same before and after, so neither overwrites samples still to move.
@@ -297,11 +311,11 @@ void VoxelGrid::lay_out_changed_blocks() noexcept {
     run.count += count;
   }
   flush();
-  for (std::size_t i = 0; i < kAhead; ++i) {
-    prefetch_reloaded(i);
-  }
+}
+
+void VoxelGrid::load_changed_blocks() noexcept {
   for (std::size_t i = 0; i < block_count_; ++i) {
-    prefetch_reloaded(i + kAhead);
+    prefetch_reloaded_ahead_of(i);
     const BlockOrder& entry = block_order_[i];
     if (reloaded(entry)) {
       load_block(entry.block, live_masks_[entry.block], block_first_[entry.block]);

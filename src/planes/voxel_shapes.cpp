@@ -247,6 +247,8 @@ void VoxelGrid::mark_stale_blocks() noexcept {
   }
 }
 
+// One function, longer than most: the pipelined walk over every block, whose look-ahead ring
+// and per-block sums its steps share (the shape pass's hottest loop).
 void VoxelGrid::estimate_fine_shapes(const ShapeLimits& limits, bool every_sample_votes,
                                      std::span<std::uint32_t> voting_points,
                                      double& thickness_sum_m,
@@ -527,6 +529,8 @@ Eigen::Vector3f VoxelGrid::coarse_normal(std::uint32_t block, const ShapeLimits&
   return coarse_normal_of(kept, limits, false) ? kept.normal : Eigen::Vector3f::Zero();
 }
 
+// One function, longer than most: run for every sample, the neighbourhood's sums and the
+// eigen-decomposition read as one computation.
 float VoxelGrid::estimate_shape(Voxel& voxel, const BlockNeighbourhood& around,
                                 const ShapeLimits& limits) const noexcept {
   const auto cell = unpack_cell(voxel.key);

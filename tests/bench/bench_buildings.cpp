@@ -1,4 +1,4 @@
-// Building fitting per update (issue 8: <= 1 ms for a block of ten buildings). The plane list
+// Building fitting per update (the target: <= 1 ms for a block of ten buildings). The plane list
 // is what a mapper's registry holds for a city block: ten buildings (rect, L and T, some sides
 // never seen, some walls broken by occlusion), their roofs, the ground, and clutter (cars,
 // hedges, posts: small vertical planes the fitter must look at and leave).

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "blockmap/core/arena.hpp"
-#include "blockmap/hal/sim/robot.hpp"
+#include "blockmap/hal/config/robot.hpp"
 #include "blockmap/hal/sim/truth_cloud.hpp"
 #include "blockmap/hal/sim/world.hpp"
 #include "blockmap/planes/plane_detector.hpp"
@@ -22,7 +22,7 @@ const std::vector<Eigen::Vector3f>& city_cloud() {
     hal::sim::SimOptions options;
     options.seed = 3;
     return hal::sim::simulate_truth_cloud(hal::sim::load_world("usc_block"),
-                                          hal::sim::load_robot("paper_rmp"), options)
+                                          hal::config::load_robot("paper_rmp"), options)
         .points_m;
   }();
   return points;

@@ -9,7 +9,7 @@
 #include <filesystem>
 #include <string>
 
-#include "blockmap/hal/sim/robot.hpp"
+#include "blockmap/hal/config/robot.hpp"
 #include "blockmap/hal/sim/run_recorder.hpp"
 #include "blockmap/hal/sim/simulation.hpp"
 #include "blockmap/hal/sim/world.hpp"
@@ -37,7 +37,7 @@ void report(benchmark::State& state, double simulated_s, double wall_s, std::uin
 
 void BM_SimulateWorld(benchmark::State& state, const char* world_name, bool write_logs) {
   const World world = load_world(world_name);
-  const RobotSpec robot = load_robot("paper_rmp");
+  const config::RobotSpec robot = config::load_robot("paper_rmp");
   const std::filesystem::path folder =
       std::filesystem::temp_directory_path() / (std::string("blockmap_bench_") + world_name);
   for (auto _ : state) {

@@ -122,7 +122,6 @@ TEST(PathSmoother, TheWholePathSitsWhereTheRunsFixesPutItOnAverage) {
     EXPECT_LT(e.rms_m, 0.4 * e.gps_rms_m) << "seed " << seed;
     // Rigid: the error is one shift for the whole path, and that shift is the fixes' mean
     // error (the receiver's slow error over five minutes), not more.
-    // 2026-12-03: shapes 0.25-0.38 m RMS, the mean 0.12-0.33 m from the fixes' mean error.
     EXPECT_LT(e.shape_rms_m, 0.45) << "seed " << seed;
     EXPECT_LT((e.mean_error_m - e.receiver_mean_m).norm(), 0.4) << "seed " << seed;
     EXPECT_EQ(fixture.smoother.counters().thinnings, 0u);
@@ -167,7 +166,6 @@ TEST(PathSmoother, ItIsBetterThanTheParticleFiltersSmoothedPathOnTheSameDrive) {
       smooth_drive(fixture.smoother, samples, calibrated_odometry(samples, drive, 1e-4));
   std::printf("filter smoothed %.2f m RMS, path smoother %.2f m RMS (GPS %.2f m)\n",
               filtered.smoothed_rms_m, e.rms_m, e.gps_rms_m);
-  // 2026-12-03: 0.32 m against the filter's 0.61 m.
   EXPECT_LT(e.rms_m, 0.75 * filtered.smoothed_rms_m);
 }
 
@@ -188,7 +186,6 @@ TEST(PathSmoother, AnOutageIsBridgedByTheOdometry) {
       smooth_drive(reference.smoother, with_fixes, calibrated_odometry(with_fixes, whole, 1e-4));
   std::printf("a minute without GPS: smoothed %.2f m RMS, shape %.2f m; with it %.2f m, %.2f m\n",
               e.rms_m, e.shape_rms_m, r.rms_m, r.shape_rms_m);
-  // 2026-12-03: shape 0.64 m RMS against 0.39 m with every fix.
   EXPECT_LT(e.shape_rms_m, r.shape_rms_m + 0.35);
   EXPECT_LT(e.rms_m, 0.5 * e.gps_rms_m);
   // A keyframe every metre while no fix came: 72 m at 1.2 m/s.
@@ -364,7 +361,7 @@ TEST(PathSmootherTies, AWallSeenOnTwoPassesIsOneWallOnTheSolvedPath) {
     EXPECT_EQ(fixture.smoother.tie_count(), tied ? 1u : 0u);
     EXPECT_EQ(fixture.smoother.counters().cg_steps > 0, tied);
   }
-  // Without the tie the passes keep a quarter of the receiver's 2 m (2026-12-04: 0.54 m);
+  // Without the tie the passes keep a quarter of the receiver's 2 m apart;
   // with it they are one wall, where the two passes' fixes put it on average (the truth).
   EXPECT_GT(apart_m[0], 0.4);
   EXPECT_LT(apart_m[1], 0.1);

@@ -10,8 +10,8 @@
 #include <numbers>
 #include <vector>
 
+#include "blockmap/hal/config/robot.hpp"
 #include "blockmap/hal/protocol/sick_lms2xx.hpp"
-#include "blockmap/hal/sim/robot.hpp"
 #include "blockmap/hal/sim/simulation.hpp"
 #include "blockmap/hal/sim/world.hpp"
 #include "blockmap/map/scan_projector.hpp"
@@ -67,7 +67,7 @@ localize::Pose3 true_pose_at(const std::vector<StampedState>& states, TimestampN
 }
 
 TEST(ScanProjectorSim, EveryBeamLandsWhereTheSimulatorsRayMetTheWorld) {
-  const hal::sim::RobotSpec robot = hal::sim::load_robot("paper_rmp");
+  const hal::config::RobotSpec robot = hal::config::load_robot("paper_rmp");
   ASSERT_EQ(robot.lasers.size(), 2u);
   hal::sim::SimOptions options;
   options.seed = 5;
@@ -83,7 +83,7 @@ TEST(ScanProjectorSim, EveryBeamLandsWhereTheSimulatorsRayMetTheWorld) {
   }
   EXPECT_GT(largest_pitch_rad, 0.01);  // the test would not see a pitch sign error otherwise
   for (std::size_t laser = 0; laser < 2; ++laser) {
-    const hal::sim::LaserSpec& spec = robot.lasers[laser];
+    const hal::config::LaserSpec& spec = robot.lasers[laser];
     const auto geometry = hal::protocol::sick_lms2xx::geometry(spec.variant);
     const double start_rad = -static_cast<double>(geometry.field_deg) * std::numbers::pi / 360.0;
     const double step_rad =

@@ -1,4 +1,4 @@
-// The on-robot daemon's pipeline thread allocates nothing once it runs (issue 9): the
+// The on-robot daemon's pipeline thread allocates nothing once it runs: the
 // simulated robot through the daemon's threads, laps of its loop, the pipeline thread's own
 // allocations counted from its first message to its last (the device readers, the simulation
 // and the output thread, which formats JSON, are other threads).

@@ -32,7 +32,7 @@ TEST(MapperBudget, TheDefaultCapacitiesFitSixtyFourMebibytes) {
   // larger scan queue), which the daemon maps from with no --budget-mib.
   for (const char* robot : {"paper_rmp", "rmp_tim"}) {
     SCOPED_TRACE(robot);
-    const MapperConfig config = hal::sim::mapper_config_for(hal::sim::load_robot(robot));
+    const MapperConfig config = hal::config::mapper_config_for(hal::config::load_robot(robot));
     EXPECT_EQ(validate(config), "");
     EXPECT_LE(Mapper::arena_bytes(config), std::size_t{64} << 20);
     Arena arena(Mapper::arena_bytes(config));

@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "blockmap/core/arena.hpp"
-#include "blockmap/hal/sim/robot.hpp"
+#include "blockmap/hal/config/robot.hpp"
 #include "blockmap/hal/sim/truth_cloud.hpp"
 #include "blockmap/hal/sim/world.hpp"
 #include "blockmap/planes/plane_detector.hpp"
@@ -20,7 +20,7 @@ TEST(PlanesBudget, DetectingAllocatesNothingAfterInitAndFitsItsBudget) {
   hal::sim::SimOptions options;
   options.max_duration_s = 20.0;
   const hal::sim::TruthCloud cloud = hal::sim::simulate_truth_cloud(
-      hal::sim::load_world("usc_block"), hal::sim::load_robot("paper_rmp"), options);
+      hal::sim::load_world("usc_block"), hal::config::load_robot("paper_rmp"), options);
   ASSERT_GT(cloud.points_m.size(), 200'000u);
   PlanesConfig config;
   config.max_samples = 1 << 18;
@@ -45,7 +45,7 @@ TEST(PlanesBudget, DetectingAllocatesNothingAfterInitAndFitsItsBudget) {
   });
   // And a cloud blurred by pose errors, where the corner look runs after merging.
   const hal::sim::TruthCloud blurred = hal::sim::simulate_truth_cloud(
-      hal::sim::load_world("usc_block"), hal::sim::load_robot("paper_rmp"), options,
+      hal::sim::load_world("usc_block"), hal::config::load_robot("paper_rmp"), options,
       hal::sim::PoseNoise{0.5 * std::numbers::pi / 180.0, 0.05, 0.0});
   EXPECT_NO_ALLOCATIONS({
     detector.clear();

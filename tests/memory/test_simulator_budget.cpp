@@ -9,7 +9,7 @@
 
 #include <unistd.h>
 
-#include "blockmap/hal/sim/robot.hpp"
+#include "blockmap/hal/config/robot.hpp"
 #include "blockmap/hal/sim/run_recorder.hpp"
 #include "blockmap/hal/sim/sim_ports.hpp"
 #include "blockmap/hal/sim/simulation.hpp"
@@ -43,7 +43,7 @@ void run_until(Simulation& simulation, SimSink& sink, double seconds) {
 TEST(SimulatorBudget, ARunAllocatesNothingAfterConstruction) {
   SimOptions options;
   options.max_duration_s = 60.0;
-  Simulation simulation(load_world("benning"), load_robot("paper_rmp"), options);
+  Simulation simulation(load_world("benning"), config::load_robot("paper_rmp"), options);
   CountingSink sink;
   run_until(simulation, sink, 1.0);  // the lasers' handshake, the first scans
   const std::size_t bytes = simulation.memory_bytes();
@@ -57,7 +57,7 @@ TEST(SimulatorBudget, ARunAllocatesNothingAfterConstruction) {
 TEST(SimulatorBudget, WritingTheLogsAllocatesNothingEither) {
   SimOptions options;
   options.max_duration_s = 20.0;
-  Simulation simulation(load_world("usc_block"), load_robot("paper_rmp"), options);
+  Simulation simulation(load_world("usc_block"), config::load_robot("paper_rmp"), options);
   const std::filesystem::path folder =
       std::filesystem::temp_directory_path() / ("blockmap_budget_" + std::to_string(::getpid()));
   {
@@ -72,7 +72,7 @@ TEST(SimulatorBudget, WritingTheLogsAllocatesNothingEither) {
 TEST(SimulatorBudget, FeedingTheRobotsPortsAllocatesNothing) {
   SimOptions options;
   options.max_duration_s = 5.0;
-  Simulation simulation(load_world("usc_block"), load_robot("paper_rmp"), options);
+  Simulation simulation(load_world("usc_block"), config::load_robot("paper_rmp"), options);
   ManualClock clock(simulation.start_ns());
   std::array<PendingCanFrame, 64> pending{};
   std::array<CanFrame, 4> sent{};

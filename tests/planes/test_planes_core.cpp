@@ -1222,8 +1222,8 @@ TEST(SectionGrid, ListsEverySectionThatHoldsASampleOnceInKeyOrder) {
 TEST(PlanesConfig, ValidateNamesWhatIsWrong) {
   EXPECT_EQ(validate(PlanesConfig{}), "");
   PlanesConfig c;
-  c.section_stride_m = 0.5;
-  EXPECT_NE(validate(c).find("section_stride_m"), std::string::npos);
+  c.section_size_m = 1.0;  // not a whole number of 0.8 m strides
+  EXPECT_NE(validate(c).find("section_size_m"), std::string::npos);
   c = PlanesConfig{};
   c.angle_bin_deg = 0.0;
   EXPECT_NE(validate(c).find("angle_bin_deg"), std::string::npos);

@@ -67,7 +67,7 @@ class HashingSink final : public SimSink {
 
 TEST(Simulation, TheSameSeedGivesTheSameBytesAndAnotherSeedOthers) {
   const World world = load_world("usc_block");
-  const RobotSpec robot = load_robot("paper_rmp");
+  const config::RobotSpec robot = config::load_robot("paper_rmp");
   HashingSink first;
   HashingSink again;
   HashingSink other;
@@ -137,7 +137,7 @@ class DecodingSink final : public SimSink {
   int fixes = 0;
 
  private:
-  static rmp::Config rmp_config(const RobotSpec& robot) {
+  static rmp::Config rmp_config(const config::RobotSpec& robot) {
     rmp::Config config;
     config.model = robot.base.model;
     config.yaw_sign = robot.base.yaw_sign;
@@ -214,7 +214,7 @@ class DecodingSink final : public SimSink {
 };
 
 TEST(Simulation, ItsBytesDecodeBackToWhatWasSimulated) {
-  Simulation simulation(load_world("usc_block"), load_robot("paper_rmp"), options_for(8.0));
+  Simulation simulation(load_world("usc_block"), config::load_robot("paper_rmp"), options_for(8.0));
   DecodingSink sink(simulation);
   simulation.run(sink);
   EXPECT_NEAR(sink.cycles, 800, 2);
@@ -225,14 +225,15 @@ TEST(Simulation, ItsBytesDecodeBackToWhatWasSimulated) {
 // An RTK receiver says so in GGA (quality 4) and writes its centimetre fixes finely enough:
 // they decode to within a millimetre of what was simulated.
 TEST(Simulation, AnRtkReceiversFixesDecodeToTheMillimetre) {
-  Simulation simulation(load_world("usc_block"), load_robot("paper_rmp_rtk"), options_for(8.0));
+  Simulation simulation(load_world("usc_block"), config::load_robot("paper_rmp_rtk"),
+                        options_for(8.0));
   DecodingSink sink(simulation);
   simulation.run(sink);
   EXPECT_GE(sink.fixes, 8 * 4 - 1);
 }
 
 TEST(Simulation, HalfDegreeScansInterlaceTwoMirrorTurnsAndMillimetreUnitsReachEightMetres) {
-  RobotSpec robot = load_robot("paper_rmp");
+  config::RobotSpec robot = config::load_robot("paper_rmp");
   robot.lasers[0].variant = lms::AngularVariant::k180DegHalfDeg;
   robot.lasers[0].scan_rate_hz = 37.5;
   robot.lasers[1].units = lms::Units::kMm;  // 13 range bits in mm: 8.191 m at most
@@ -283,7 +284,8 @@ class FaceCheckingSink final : public SimSink {
 };
 
 TEST(Simulation, TruthFacesAgreeWithTheLaserReturnsThatHitThem) {
-  Simulation simulation(load_world("usc_block"), load_robot("paper_rmp"), options_for(20.0));
+  Simulation simulation(load_world("usc_block"), config::load_robot("paper_rmp"),
+                        options_for(20.0));
   FaceCheckingSink sink(simulation.scene());
   simulation.run(sink);
   EXPECT_GT(sink.checked, 10'000u);
@@ -313,14 +315,14 @@ World straight_road(double length_m) {
   return world;
 }
 
-RobotSpec robot_without_lasers() {
-  RobotSpec robot = load_robot("paper_rmp");
+config::RobotSpec robot_without_lasers() {
+  config::RobotSpec robot = config::load_robot("paper_rmp");
   robot.lasers.clear();
   return robot;
 }
 
 TEST(Simulation, TheSegwayPitchesWithItsAccelerationAndBraking) {
-  const RobotSpec robot = robot_without_lasers();
+  const config::RobotSpec robot = robot_without_lasers();
   Simulation simulation(straight_road(30.0), robot, SimOptions{});
   StateSink sink;
   simulation.run(sink);
@@ -377,7 +379,7 @@ TEST(Simulation, BumpsShakeThePitchAndRoughGroundTheRoll) {
 }
 
 TEST(Simulation, GpsErrorStatisticsMatchTheConfiguration) {
-  RobotSpec robot = robot_without_lasers();
+  config::RobotSpec robot = robot_without_lasers();
   robot.gps.correlation_time_s = 10.0;  // many independent samples in a short run
   robot.gps.horizontal_error_rms_m = 2.0;
   robot.gps.multipath_error_rms_m = 1.6;  // the slow part: 1.2 m
@@ -494,7 +496,7 @@ struct PortRig {
 };
 
 TEST(Simulation, TheRobotsDevicesReadTheSimulationThroughTheirPorts) {
-  Simulation simulation(load_world("usc_block"), load_robot("paper_rmp"), options_for(4.0));
+  Simulation simulation(load_world("usc_block"), config::load_robot("paper_rmp"), options_for(4.0));
   auto rig = std::make_unique<PortRig>(simulation);
   rig->clock.set_ns(simulation.start_ns());
   ASSERT_EQ(rig->horizontal.start(), IoStatus::kOk);

@@ -5,7 +5,7 @@
 #include <string>
 
 #include "blockmap/hal/config/config_error.hpp"
-#include "blockmap/hal/sim/robot.hpp"
+#include "blockmap/hal/config/robot.hpp"
 #include "blockmap/hal/sim/world.hpp"
 
 namespace blockmap::hal::sim {
@@ -142,7 +142,7 @@ TEST(WorldFiles, MistakesNameTheKey) {
 }
 
 TEST(RobotFiles, ThePapersRobotLoads) {
-  const RobotSpec robot = load_robot("paper_rmp");
+  const config::RobotSpec robot = config::load_robot("paper_rmp");
   ASSERT_EQ(robot.lasers.size(), 2u);
   EXPECT_EQ(robot.lasers[0].name, "horizontal");
   EXPECT_EQ(robot.lasers[1].name, "vertical");
@@ -152,8 +152,8 @@ TEST(RobotFiles, ThePapersRobotLoads) {
 }
 
 TEST(RobotFiles, ThePapersRobotWithAnRtkReceiverDiffersByItsReceiverAlone) {
-  const RobotSpec paper = load_robot("paper_rmp");
-  const RobotSpec rtk = load_robot("paper_rmp_rtk");
+  const config::RobotSpec paper = config::load_robot("paper_rmp");
+  const config::RobotSpec rtk = config::load_robot("paper_rmp_rtk");
   EXPECT_EQ(paper.gps.fix_quality, msg::GpsFixQuality::kGps);
   EXPECT_EQ(rtk.gps.fix_quality, msg::GpsFixQuality::kRtkFixed);
   EXPECT_DOUBLE_EQ(rtk.gps.horizontal_error_rms_m, 0.02);
@@ -169,7 +169,7 @@ TEST(RobotFiles, ThePapersRobotWithAnRtkReceiverDiffersByItsReceiverAlone) {
 
 TEST(RobotFiles, AnUnknownFixQualityIsRefusedWithTheChoices) {
   try {
-    (void)parse_robot("name = \"r\"\n[gps]\nfix_quality = \"ppp\"\n", "r.toml");
+    (void)config::parse_robot("name = \"r\"\n[gps]\nfix_quality = \"ppp\"\n", "r.toml");
     FAIL() << "ppp is no fix quality the simulated receiver reports";
   } catch (const ConfigError& error) {
     EXPECT_EQ(std::string(error.what()),
@@ -187,7 +187,7 @@ baud = 38400
 scan_rate_hz = 75.0
 )";
   try {
-    (void)parse_robot(text, "slow.toml");
+    (void)config::parse_robot(text, "slow.toml");
     FAIL() << "a 75 Hz scan cannot go over 38400 Bd";
   } catch (const ConfigError& error) {
     EXPECT_EQ(std::string(error.what()),
@@ -197,11 +197,11 @@ scan_rate_hz = 75.0
   // 75 / 8 Hz fits.
   std::string slower = text;
   slower.replace(slower.find("75.0"), 4, "9.375");
-  EXPECT_NO_THROW((void)parse_robot(slower, "slow.toml"));
+  EXPECT_NO_THROW((void)config::parse_robot(slower, "slow.toml"));
 }
 
 TEST(RobotFiles, UnknownBuiltInsAndFilesAreClearErrors) {
-  EXPECT_THROW((void)load_robot("no_such_robot"), ConfigError);
+  EXPECT_THROW((void)config::load_robot("no_such_robot"), ConfigError);
   EXPECT_THROW((void)load_world("no_such_world"), ConfigError);
   EXPECT_THROW((void)load_world("/nonexistent/world.toml"), ConfigError);
 }

@@ -1,4 +1,4 @@
-// Scoring detected planes against a simulated world's truth faces, the way issue 5 defines
+// Scoring detected planes against a simulated world's truth faces, the way the project defines
 // accuracy: a face is found by a plane within 3 degrees, 0.15 m at the face centre, whose
 // extent overlaps the face.
 #pragma once
@@ -6,8 +6,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstdio>
 #include <numbers>
 #include <span>
+#include <string>
 #include <vector>
 
 #include <Eigen/Cholesky>
@@ -258,6 +260,39 @@ inline MapAlignment align_planes_to_faces(std::span<const hal::sim::TruthFace> f
     alignment.shift_m += normal_equations.ldlt().solve(right_side);
   }
   return alignment;
+}
+
+// Why each missed face was missed: the plane nearest to it in direction and offset, if any.
+inline void print_missed_faces(std::span<const hal::sim::TruthFace> faces,
+                               std::span<const msg::PlanePatch> planes, const PlaneScore& s) {
+  for (const int id : s.missed_faces) {
+    const auto face = std::find_if(faces.begin(), faces.end(),
+                                   [id](const hal::sim::TruthFace& f) { return f.id == id; });
+    if (face == faces.end()) {
+      continue;
+    }
+    const msg::PlanePatch* nearest = nullptr;
+    FaceMatch nearest_match;
+    for (const msg::PlanePatch& plane : planes) {
+      const FaceMatch match = match_face(*face, plane, {});
+      if (match.angle_deg < 10.0 &&
+          (nearest == nullptr || match.offset_m < nearest_match.offset_m)) {
+        nearest = &plane;
+        nearest_match = match;
+      }
+    }
+    std::printf("  MISSED face %d %s n (%.2f %.2f %.2f) d %.2f returns %llu", id,
+                face->kind == hal::sim::SurfaceKind::kWall ? "wall" : "roof/ground",
+                face->normal.x(), face->normal.y(), face->normal.z(), face->d_m,
+                static_cast<unsigned long long>(face->returns));
+    if (nearest != nullptr) {
+      std::printf("; nearest plane %u %s: %.2f deg, %.3f m, support %.0f\n", nearest->id,
+                  std::string(msg::to_string(nearest->kind)).c_str(), nearest_match.angle_deg,
+                  nearest_match.offset_m, nearest->support);
+    } else {
+      std::printf("; no plane within 10 deg\n");
+    }
+  }
 }
 
 }  // namespace blockmap::testing

@@ -18,7 +18,7 @@ namespace blockmap::testing {
 class RecordedMapperInputs {
  public:
   RecordedMapperInputs(const std::string& world_name, double duration_s, std::uint64_t seed = 5) {
-    const hal::sim::RobotSpec robot = hal::sim::load_robot("paper_rmp");
+    const hal::config::RobotSpec robot = hal::config::load_robot("paper_rmp");
     const hal::sim::World world = hal::sim::load_world(world_name);
     hal::sim::SimOptions options;
     options.seed = seed;
@@ -26,7 +26,7 @@ class RecordedMapperInputs {
     hal::FixConverter converter(world.site.origin);
     hal::sim::SimulatedRobot simulated(world, robot, options);
     started = simulated.start() == IoStatus::kOk;
-    config = hal::sim::mapper_config_for(robot);
+    config = hal::config::mapper_config_for(robot);
     bool more = true;
     while (more) {
       more = simulated.advance();

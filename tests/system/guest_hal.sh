@@ -25,7 +25,8 @@ stop_gadget() { kill $gadget_pid; cat /tmp/tim_gadget.log; }
 sleep 0.5
 echo dummy_udc.0 > $gadget/UDC || { stop_gadget; exit 1; }
 # The GPIO tests press the machine's power button through scripts/guest-test (PL061 line 3).
-BLOCKMAP_GUEST_POWER_BUTTON=1 BLOCKMAP_GUEST_TIM_UDC=$gadget/UDC unit_hal_tests --gtest_brief=1 ||
+unit_hal_tests --gtest_brief=1 || { stop_gadget; exit 1; }
+BLOCKMAP_GUEST_POWER_BUTTON=1 BLOCKMAP_GUEST_TIM_UDC=$gadget/UDC linux_backend_tests --gtest_brief=1 ||
   { stop_gadget; exit 1; }
 # The daemon with the modern variant's TiM (its serial number) and the RMP on vcan0: the TiM is
 # unplugged for a second and plugged back while it maps; the reader finds it again, starts it

@@ -1,5 +1,5 @@
 // tim_gadget: the device side of a SICK TiM (19a2:5001) on a real USB stack, for the arm64
-// guest's system tests (issue 9). It serves a FunctionFS function (usb_f_fs) that the guest
+// guest's system tests. It serves a FunctionFS function (usb_f_fs) that the guest
 // binds to dummy_hcd's UDC, so that the same kernel enumerates it as a USB device and libusb
 // opens it as it opens a TiM: one vendor-specific interface, a bulk IN and a bulk OUT endpoint.
 //

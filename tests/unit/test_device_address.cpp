@@ -1,4 +1,4 @@
-// Device strings of the robot's configuration (issue 9): every backend's form, read back the
+// Device strings of the robot's configuration: every backend's form, read back the
 // same, and one clear line for each mistake.
 #include <gtest/gtest.h>
 

@@ -167,7 +167,7 @@ class PlaneView {
   PlaneView& operator=(const PlaneView&) = default;
 };
 
-// A plane as a snapshot keeps it (issue 9: the map survives a crash): where the stream shows
+// A plane as a snapshot keeps it (the map survives a crash): where the stream shows
 // it, and the moments of all its points there, which is all a final plane is.
 struct SavedPlane {
   msg::PlanePatch plane;

@@ -33,6 +33,9 @@ struct SensorMount {
   double yaw_rad = 0.0;
 };
 
+// The mount's rotation from the sensor's frame to the robot's (roll, then pitch, then yaw).
+[[nodiscard]] Eigen::Matrix3d mount_rotation(const SensorMount& mount) noexcept;
+
 struct ScanProjectorConfig {
   // The band of ranges kept: nearer returns are the robot itself or its rider, farther ones
   // carry too much of the pose's angular error (0.5 deg is 0.35 m at 40 m).
@@ -46,7 +49,7 @@ struct ScanProjectorConfig {
   // on benning were half of the window's samples (docs/mapper.md, Speed); the ground near the
   // robot is dense and keeps its plane. 0 in this struct; the mapper's configuration from a
   // robot file (hal::sim::mapper_config_for) sets 8 m, and `[projection] far_ground_range_m
-  // = 0` turns it off (docs/mapper.md, Speed, 2026-12-02). mapper_config_for also sets the
+  // = 0` turns it off (docs/mapper.md, Speed). mapper_config_for also sets the
   // axle's height from the robot file's wheel radius.
   double far_ground_range_m = 0.0;
   // A return is ground when it lies less than this above the ground under the robot...

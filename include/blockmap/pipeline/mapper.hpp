@@ -143,7 +143,7 @@ class Mapper {
   [[nodiscard]] const map::VoxelWindow& window() const noexcept { return window_; }
   [[nodiscard]] const map::PlaneRegistry& registry() const noexcept { return registry_; }
   [[nodiscard]] const map::FreeSpaceGrid& free_space() const noexcept { return free_space_; }
-  // For snapshots (issue 9): every plane as it would be if the run ended now
+  // For snapshots: every plane as it would be if the run ended now
   // (PlaneRegistry::save); the map is left as it was.
   [[nodiscard]] std::size_t save_planes(std::span<map::SavedPlane> out) noexcept {
     return registry_.save(out);

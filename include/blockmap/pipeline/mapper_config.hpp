@@ -97,7 +97,7 @@ struct MapperConfig {
   std::array<map::SensorMount, kMaxLasers> laser_mounts{};
   std::size_t laser_count = 0;
   map::ScanProjectorConfig projection;
-  map::VoxelWindowConfig window;
+  map::VoxelWindowConfig window;  // its voxel_size_m is the detector's sample_size_m (below)
   // The detector runs over the window: its sample capacity is the window's (init() sets it),
   // and a window holds fewer planes and section planes than a whole city's cloud.
   planes::PlanesConfig planes = window_planes_config();
@@ -148,6 +148,7 @@ struct MapperConfig {
 [[nodiscard]] bool is_level_laser(const MapperConfig& config, std::size_t laser) noexcept;
 [[nodiscard]] bool only_level_lasers(const MapperConfig& config) noexcept;
 [[nodiscard]] std::size_t free_space_cells(const MapperConfig& config) noexcept;
+[[nodiscard]] map::VoxelWindowConfig window_config(const MapperConfig& config) noexcept;
 [[nodiscard]] planes::PlanesConfig detector_config(const MapperConfig& config) noexcept;
 [[nodiscard]] localize::ScanMatchConfig matcher_config(const MapperConfig& config) noexcept;
 [[nodiscard]] map::PlaneRegistryConfig registry_config(const MapperConfig& config) noexcept;

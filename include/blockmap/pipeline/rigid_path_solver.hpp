@@ -52,6 +52,12 @@ class RigidPathSolver final : public map::PlaneView {
   void tie_walls_to_earlier_passes(std::span<const msg::PlanePatch> detected,
                                    const map::PlaneRegistry& registry,
                                    TimestampNs stamp_ns) noexcept;
+  // The final wall that `wall` is an earlier pass's drawing of, or final_planes().size().
+  [[nodiscard]] static std::size_t earlier_drawing_of(const msg::PlanePatch& wall,
+                                                      const map::PlaneRegistry& registry,
+                                                      TimestampNs stamp_ns) noexcept;
+  // The later look's keyframe: one of this pass, the last half minute.
+  static constexpr TimestampNs kThisPassNs = 30 * kNanosecondsPerSecond;
 
   // Where the solved path puts a plane drawn with the poses of its time, seen at the times
   // `seen` holds (the identity before the path has fixes and a solve, with no keyframe near,

@@ -131,6 +131,17 @@ class PlaneMerger {
   [[nodiscard]] bool excluded(const Candidate& candidate) const noexcept;
   void drop_excluded() noexcept;
   void label_and_emit() noexcept;
+  // label_and_emit()'s steps: the ground (the lowest horizontal plane with a quarter of the
+  // largest one's points), its far pieces merged into it, and the planes out with their kinds.
+  [[nodiscard]] Candidate* find_ground() noexcept;
+  void absorb_far_ground(Candidate& ground) noexcept;
+  void emit(const Candidate* ground) noexcept;
+  [[nodiscard]] msg::PlaneKind kind_of(const Candidate& c, const Eigen::Vector3d& normal,
+                                       const Candidate* ground) const noexcept;
+  [[nodiscard]] bool horizontal(const Candidate& c) const noexcept;
+  // A point's height above the ground plane, along the vertical.
+  [[nodiscard]] static double height_above(const Candidate& ground,
+                                           const Eigen::Vector3d& p) noexcept;
 
   PlanesConfig config_;
   std::array<PlaneExclusion, kMaxExclusions> exclusions_{};

@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <string>
 
+#include "blockmap/planes/cell_index.hpp"
+
 namespace blockmap::planes {
 
 // Which plane orientations the Hough transform searches.
@@ -30,12 +32,15 @@ enum class VotingMode : std::uint8_t {
 struct PlanesConfig {
   // Points are first summed into cubic samples of this edge (moments, not points, are kept).
   double sample_size_m = 0.2;
-  // Sections: cubes of section_size_m, one starting every section_stride_m along each axis,
+  // Sections: cubes of section_size_m, one starting every section_stride_m() along each axis,
   // so that they overlap and a plane crossing a section border is whole in a neighbour.
-  // section_size_m must be a whole multiple of section_stride_m, and the stride is 4 samples:
-  // sections are made of the blocks of 4 x 4 x 4 samples that the voxel grid keeps.
+  // section_size_m must be a whole multiple of the stride.
   double section_size_m = 1.6;
-  double section_stride_m = 0.8;
+  // The stride is a block of samples: sections are made of the 4 x 4 x 4 blocks that the
+  // voxel grid keeps.
+  [[nodiscard]] double section_stride_m() const noexcept {
+    return static_cast<double>(kBlockEdge) * sample_size_m;
+  }
 
   // The (d, theta, phi) grid.
   double d_bin_m = 0.05;

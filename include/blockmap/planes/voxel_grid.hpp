@@ -33,6 +33,20 @@ struct VoxelSums {
   std::uint32_t point_count = 0;
   float sum_m[3] = {0, 0, 0};                  // sum of (p - centre)
   float sum_outer_m2[6] = {0, 0, 0, 0, 0, 0};  // xx xy xz yy yz zz of (p - centre)
+
+  // Adds a point at `local_m` from the voxel's centre.
+  void add_point_m(const Eigen::Vector3f& local_m) noexcept {
+    ++point_count;
+    sum_m[0] += local_m.x();
+    sum_m[1] += local_m.y();
+    sum_m[2] += local_m.z();
+    sum_outer_m2[0] += local_m.x() * local_m.x();
+    sum_outer_m2[1] += local_m.x() * local_m.y();
+    sum_outer_m2[2] += local_m.x() * local_m.z();
+    sum_outer_m2[3] += local_m.y() * local_m.y();
+    sum_outer_m2[4] += local_m.y() * local_m.z();
+    sum_outer_m2[5] += local_m.z() * local_m.z();
+  }
 };
 
 // A sample as the detector sees it: the sums, laid out block by block by compact(), and what
@@ -278,6 +292,22 @@ class VoxelGrid {
   void order_blocks(bool keep_placed) noexcept;
   void lay_out_all_blocks() noexcept;
   void lay_out_changed_blocks() noexcept;
+  // lay_out_changed_blocks()'s steps: every block's new place (the changed ones' live cells
+  // read again), the kept blocks' samples moved there, the changed blocks' read from the table.
+  void place_blocks_keeping_order() noexcept;
+  void move_kept_blocks() noexcept;
+  void load_changed_blocks() noexcept;
+  // Whether the next compact() reads this block from the table again (new or changed).
+  struct BlockOrder;
+  [[nodiscard]] bool reloaded(const BlockOrder& entry) const noexcept;
+  // Fetches the table slots of block_order_[i]'s cells when it is reloaded (a hint).
+  void prefetch_if_reloaded(std::size_t i) const noexcept;
+  // Before block_order_[i] is read: the reloaded block kPrefetchAheadBlocks on is fetched
+  // (and, at the first, those before it).
+  void prefetch_reloaded_ahead_of(std::size_t i) const noexcept;
+  // A walk over the blocks fetches the slots of the block this many places on (the table is
+  // tens of MiB: a block's cells are a cache miss each).
+  static constexpr std::size_t kPrefetchAheadBlocks = 16;
   // Fetches the table slots of a block's cells into the cache (a hint, no effect otherwise).
   void prefetch_block_cells(std::uint32_t block) const noexcept;
   // The table slot of the cell at `bit` of a block (a cell marked in its block).

@@ -1,6 +1,6 @@
 // blockmap against the plane detectors users would otherwise pick (PCL, CGAL, Open3D), on
 // the same simulated city cloud, on one core, each scored against the world's truth faces
-// the way issue 5 scores blockmap (tests/support/plane_truth.hpp).
+// the way blockmap is scored (tests/support/plane_truth.hpp).
 //
 //   scripts/bench-peers            (installs the peers, builds this, runs it on one core)
 //   bench_peers [--world W] [--seconds S] [--only NAMES] [--time-limit S]
@@ -18,7 +18,7 @@
 #include <unistd.h>
 
 #include "blockmap/core/arena.hpp"
-#include "blockmap/hal/sim/robot.hpp"
+#include "blockmap/hal/config/robot.hpp"
 #include "blockmap/hal/sim/truth_cloud.hpp"
 #include "blockmap/hal/sim/world.hpp"
 #include "blockmap/planes/plane_detector.hpp"
@@ -119,7 +119,7 @@ int main(int argc, char** argv) {
   sim.seed = 3;
   sim.max_duration_s = options.seconds;
   const hal::sim::TruthCloud cloud = hal::sim::simulate_truth_cloud(
-      hal::sim::load_world(options.world), hal::sim::load_robot("paper_rmp"), sim);
+      hal::sim::load_world(options.world), hal::config::load_robot("paper_rmp"), sim);
   const std::span<const Eigen::Vector3f> points(cloud.points_m);
   bench::PeerParameters parameters;
   parameters.time_limit_s = options.time_limit_s;

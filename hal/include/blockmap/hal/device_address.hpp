@@ -1,4 +1,4 @@
-// Where a device is, as the robot's configuration names it (issue 9): the backend and its
+// Where a device is, as the robot's configuration names it: the backend and its
 // address in one string, checked before anything starts.
 //   can:can0                     a SocketCAN interface (the Segway RMP)
 //   serial:/dev/ttyUSB0@38400    a termios serial port at its baud rate (LMS2xx, NMEA GPS)

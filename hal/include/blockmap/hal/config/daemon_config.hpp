@@ -1,4 +1,4 @@
-// The on-robot tables of a mapping configuration (`blockmap run --config FILE`, issue 9):
+// The on-robot tables of a mapping configuration (`blockmap run --config FILE`):
 // [robot] which robot's geometry, [devices] where each device is (hal/device_address.hpp),
 // [daemon] how the daemon watches them. A file with a [devices] table maps from those devices;
 // without one, `run` maps the built-in simulated block. Every mistake (an unknown key, a

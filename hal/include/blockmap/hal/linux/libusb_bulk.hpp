@@ -8,7 +8,7 @@
 // oldest completed one (in the order they were submitted) and submits it again. Their events
 // are handled on the calling thread (the device's reader), within the caller's timeout. A
 // device unplugged mid-transfer completes them as gone: kDeviceLost, and the owner closes it and
-// opens it again (issue 9's watchdog). Each open() takes a new libusb context, which enumerates
+// opens it again (the daemon's watchdog). Each open() takes a new libusb context, which enumerates
 // the bus afresh: a device plugged back in is found without a hot-plug monitor (a robot's
 // minimal system may run no udev daemon to rebroadcast the kernel's events). IN data is stamped
 // with CLOCK_MONOTONIC when its transfer completed. The rare OUT transfers (commands) are

@@ -7,7 +7,7 @@
 // non-blocking, and reads and writes wait with poll() for at most the caller's timeout, so a
 // reader thread never blocks past it. A device that goes away (a USB adapter unplugged, the
 // other end of a pseudo-terminal closed) reads as kDeviceLost; the owner closes the port and
-// opens it again when the device is back (issue 9's watchdog). Reads are stamped with
+// opens it again when the device is back (the daemon's watchdog). Reads are stamped with
 // CLOCK_MONOTONIC when the bytes were taken from the kernel.
 #pragma once
 

@@ -10,7 +10,7 @@
 #include <cstddef>
 #include <vector>
 
-#include "blockmap/hal/sim/robot.hpp"
+#include "blockmap/hal/config/robot.hpp"
 #include "blockmap/hal/sim/terrain.hpp"
 #include "blockmap/hal/sim/world.hpp"
 
@@ -39,7 +39,7 @@ class RobotMotion {
   static constexpr double kStepS = 0.005;
   static constexpr std::size_t kHistory = 256;  // 1.28 s of states
 
-  RobotMotion(const BaseSpec& base, const Path& path, const Terrain& terrain);
+  RobotMotion(const config::BaseSpec& base, const Path& path, const Terrain& terrain);
 
   // Integrates until the latest state is at or after t_s.
   void advance_to(double t_s) noexcept;
@@ -58,7 +58,7 @@ class RobotMotion {
   [[nodiscard]] Vec2 point_at(double s_m) const noexcept;
   void settle_on_ground(RobotState& state) const noexcept;
 
-  BaseSpec base_;
+  config::BaseSpec base_;
   const Terrain& terrain_;
   std::vector<Vec2> waypoints_;
   std::vector<double> cumulative_m_;

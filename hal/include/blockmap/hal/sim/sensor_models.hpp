@@ -8,10 +8,10 @@
 
 #include <Eigen/Core>
 
+#include "blockmap/hal/config/robot.hpp"
 #include "blockmap/hal/protocol/segway_rmp.hpp"
 #include "blockmap/hal/sim/motion.hpp"
 #include "blockmap/hal/sim/random.hpp"
-#include "blockmap/hal/sim/robot.hpp"
 #include "blockmap/msg/gps_fix.hpp"
 
 namespace blockmap::hal::sim {
@@ -21,13 +21,13 @@ namespace blockmap::hal::sim {
 // integrators (the counts since start).
 class BaseSensing {
  public:
-  explicit BaseSensing(const BaseSpec& base) : base_(base) {}
+  explicit BaseSensing(const config::BaseSpec& base) : base_(base) {}
   // What the base reports for the true state at the end of a cycle of dt_s.
   [[nodiscard]] protocol::segway_rmp::StatusCycle sense(const RobotState& state, double dt_s,
                                                         std::uint64_t cycle, SimRandom& random);
 
  private:
-  BaseSpec base_;
+  config::BaseSpec base_;
   double left_m_ = 0.0;  // the base's integrators (reported, with its errors)
   double right_m_ = 0.0;
   double last_true_left_m_ = 0.0;
@@ -40,7 +40,7 @@ class BaseSensing {
 // from its stationary distribution and advanced exactly for any interval.
 class GpsErrorProcess {
  public:
-  explicit GpsErrorProcess(const GpsSpec& spec);
+  explicit GpsErrorProcess(const config::GpsSpec& spec);
   // Draws the starting error from the stationary distribution.
   void start(SimRandom& random);
   void advance(double dt_s, SimRandom& random);
@@ -48,7 +48,7 @@ class GpsErrorProcess {
   [[nodiscard]] Eigen::Vector3d error_m() const noexcept;
 
  private:
-  GpsSpec spec_;
+  config::GpsSpec spec_;
   double slow_sigma_m_ = 0.0;  // per horizontal axis
   double multipath_sigma_m_ = 0.0;
   Eigen::Vector3d slow_m_ = Eigen::Vector3d::Zero();

@@ -22,14 +22,6 @@
 
 namespace blockmap::hal::sim {
 
-// The device layer's configuration for one of the robot's LMS2xx lasers: its codec settings
-// and, when one mirror turn makes a scan, its timing.
-[[nodiscard]] devices::Lms2xxScannerConfig lms2xx_config_for(const LaserSpec& spec);
-
-// The mapper's configuration for a robot: its lasers' mounts (the first kMaxLasers) and its
-// GPS antenna's height; everything else at its defaults.
-[[nodiscard]] pipeline::MapperConfig mapper_config_for(const RobotSpec& robot);
-
 class SimulatedRobot final : public SimSink {
  public:
   struct TrueState {
@@ -37,7 +29,7 @@ class SimulatedRobot final : public SimSink {
     RobotState state;
   };
 
-  SimulatedRobot(const World& world, const RobotSpec& robot, const SimOptions& options);
+  SimulatedRobot(const World& world, const config::RobotSpec& robot, const SimOptions& options);
   ~SimulatedRobot() override;
   SimulatedRobot(const SimulatedRobot&) = delete;
   SimulatedRobot& operator=(const SimulatedRobot&) = delete;

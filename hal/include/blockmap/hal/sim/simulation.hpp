@@ -18,9 +18,9 @@
 
 #include "blockmap/core/time.hpp"
 #include "blockmap/hal/can_frame.hpp"
+#include "blockmap/hal/config/robot.hpp"
 #include "blockmap/hal/protocol/byte_log.hpp"
 #include "blockmap/hal/sim/motion.hpp"
-#include "blockmap/hal/sim/robot.hpp"
 #include "blockmap/hal/sim/scene.hpp"
 #include "blockmap/hal/sim/world.hpp"
 
@@ -91,7 +91,7 @@ struct SimStats {
 
 class Simulation {
  public:
-  Simulation(const World& world, const RobotSpec& robot, const SimOptions& options);
+  Simulation(const World& world, const config::RobotSpec& robot, const SimOptions& options);
   ~Simulation();
   Simulation(const Simulation&) = delete;
   Simulation& operator=(const Simulation&) = delete;
@@ -109,7 +109,7 @@ class Simulation {
 
   [[nodiscard]] const Scene& scene() const noexcept;
   [[nodiscard]] const RobotMotion& motion() const noexcept;
-  [[nodiscard]] const RobotSpec& robot() const noexcept;
+  [[nodiscard]] const config::RobotSpec& robot() const noexcept;
   [[nodiscard]] const World& world() const noexcept;
   [[nodiscard]] const SimStats& stats() const noexcept;
   // Serial device names: "laser_<name>" for lasers, "gps".

@@ -54,7 +54,7 @@ struct TruthCloud {
 };
 
 // Runs the simulation of `world` with `robot` and returns its truth cloud and faces.
-[[nodiscard]] TruthCloud simulate_truth_cloud(const World& world, const RobotSpec& robot,
+[[nodiscard]] TruthCloud simulate_truth_cloud(const World& world, const config::RobotSpec& robot,
                                               const SimOptions& options, PoseNoise noise = {});
 
 }  // namespace blockmap::hal::sim

@@ -1,27 +1,26 @@
 // Robot files (config/robots/*.toml) -> RobotSpec. The keys are listed in config/README.md.
-#include "blockmap/hal/sim/robot.hpp"
 #include "blockmap/core/angles.hpp"
+#include "blockmap/hal/config/robot.hpp"
 
 #include <cmath>
 #include <numbers>
 #include <sstream>
 
-#include "../config/toml_reader.hpp"
 #include "blockmap/localize/localizer.hpp"
 #include "builtin_robots.hpp"
+#include "toml_reader.hpp"
 
-namespace blockmap::hal::sim {
+namespace blockmap::hal::config {
 namespace {
 
-using config::TableReader;
 namespace lms = protocol::sick_lms2xx;
 
 double degrees_or(TableReader& table, std::string_view key, double fallback_rad) {
   return table.number_or(key, fallback_rad / kRadiansPerDegree) * kRadiansPerDegree;
 }
 
-Mount parse_mount(TableReader& table) {
-  Mount mount;
+map::SensorMount parse_mount(TableReader& table) {
+  map::SensorMount mount;
   mount.position_m = table.vec3("position_m");
   mount.roll_rad = degrees_or(table, "roll_deg", 0.0);
   mount.pitch_rad = degrees_or(table, "pitch_deg", 0.0);
@@ -262,12 +261,8 @@ int mirror_turns_per_scan(lms::AngularVariant variant) noexcept {
   }
 }
 
-Eigen::Matrix3d Mount::rotation() const {
-  return localize::attitude_rotation(roll_rad, pitch_rad, yaw_rad);
-}
-
 RobotSpec parse_robot(std::string_view toml_text, std::string_view source_name) {
-  const toml::table document = config::parse_document(toml_text, source_name);
+  const toml::table document = parse_document(toml_text, source_name);
   TableReader root(document, std::string(source_name), "");
   RobotSpec robot;
   robot.name = root.string("name");
@@ -289,8 +284,8 @@ RobotSpec parse_robot(std::string_view toml_text, std::string_view source_name) 
 }
 
 std::string robot_text(std::string_view name_or_path, std::string& source) {
-  return config::builtin_or_file_text(kBuiltinRobotNames, kBuiltinRobotTexts, name_or_path, "robot",
-                                      source);
+  return builtin_or_file_text(kBuiltinRobotNames, kBuiltinRobotTexts, name_or_path, "robot",
+                              source);
 }
 
 void require_lms2xx_lasers(const RobotSpec& robot, std::string_view user) {
@@ -309,4 +304,4 @@ RobotSpec load_robot(std::string_view name_or_path) {
   return parse_robot(text, source);
 }
 
-}  // namespace blockmap::hal::sim
+}  // namespace blockmap::hal::config

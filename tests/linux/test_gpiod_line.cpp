@@ -11,6 +11,7 @@
 #include <string>
 
 #include "blockmap/hal/linux/gpiod_line.hpp"
+#include "blockmap/hal/linux/steady_clock.hpp"
 #include "test_units.hpp"
 
 namespace blockmap::hal::linux_backend {
@@ -22,12 +23,6 @@ constexpr std::uint32_t kPowerButtonLine = 3;  // QEMU's gpio-key: high for 100 
 
 bool have_gpiochip0() {
   return ::access("/dev/gpiochip0", R_OK | W_OK) == 0;
-}
-
-TimestampNs monotonic_ns() {
-  timespec now{};
-  ::clock_gettime(CLOCK_MONOTONIC, &now);
-  return static_cast<TimestampNs>(now.tv_sec) * 1'000'000'000 + now.tv_nsec;
 }
 
 TEST(GpiodLine, AChipThatIsNotThereIsOneLineNamingIt) {
@@ -90,9 +85,9 @@ TEST_F(GpiodChipTest, ALineTheChipDoesNotHaveIsRefusedWithItsCount) {
 TEST_F(GpiodChipTest, AnInputWithoutEdgesTimesOutOnTime) {
   GpiodLine line;
   ASSERT_EQ(line.open("gpiochip0", 6, GpioDirection::kInputWithEdges, false, "blockmap-test"), "");
-  const TimestampNs before = monotonic_ns();
+  const TimestampNs before = SteadyClock{}.now_ns();
   EXPECT_EQ(line.wait_edge(50 * kMs).status, IoStatus::kTimedOut);
-  EXPECT_GE(monotonic_ns() - before, 45 * kMs);
+  EXPECT_GE(SteadyClock{}.now_ns() - before, 45 * kMs);
   EXPECT_EQ(line.set(true), IoStatus::kInvalidArgument) << "an input is not driven";
 }
 
@@ -111,14 +106,14 @@ TEST_F(GpiodChipTest, ThePowerButtonsEdgesArriveWithTheKernelsMonotonicStamps) {
   bool level = true;
   ASSERT_EQ(button.get(level), IoStatus::kOk);
   EXPECT_FALSE(level) << "released";
-  const TimestampNs asked = monotonic_ns();
+  const TimestampNs asked = SteadyClock{}.now_ns();
   std::printf("guest-request: power-button\n");
   std::fflush(stdout);
   const GpioEdge pressed = button.wait_edge(30'000 * kMs);
   ASSERT_EQ(pressed.status, IoStatus::kOk);
   EXPECT_TRUE(pressed.rising);
   const GpioEdge released = button.wait_edge(5'000 * kMs);
-  const TimestampNs now = monotonic_ns();
+  const TimestampNs now = SteadyClock{}.now_ns();
   ASSERT_EQ(released.status, IoStatus::kOk);
   EXPECT_FALSE(released.rising);
   // The kernel's stamps are on CLOCK_MONOTONIC: between the request and now, in order, about

@@ -351,9 +351,8 @@ TEST(ImportCommand, TheRealUalScansMapWallsAsVerticalPlanes) {
       "UAL scans: %zu walls of 5 m or more, %.0f m in all; %zu along the block's axes (%.0f "
       "m); the longest %.1f m\n",
       walls.size(), total_m, along_axes, along_axes_m, walls.front().first);
-  // Measured on x86 (2026-11-24: 39 walls, 650 m, 26 along the axes with 512 m, 93.0 m the
-  // longest; 18 walls and 16.2 m when the test was written), with room for the other
-  // architectures' rounding.
+  // Bounds with room below what x86 maps (docs/benchmarks.md), for the other architectures'
+  // rounding.
   EXPECT_GE(walls.size(), 20u);
   EXPECT_GE(static_cast<double>(along_axes), 0.5 * static_cast<double>(walls.size()));
   EXPECT_GE(along_axes_m, 0.5 * total_m);

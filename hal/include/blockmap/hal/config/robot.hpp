@@ -1,6 +1,9 @@
-// The simulated robot: a Segway RMP with its lasers and GPS receiver, as a robot file describes
-// it (config/robots/*.toml; keys in config/README.md). The built-in `paper_rmp` is the paper's
+// A robot's description: a Segway RMP with its lasers and GPS receiver, as a robot file
+// describes it (config/robots/*.toml; keys in config/README.md), for the daemon on the robot,
+// the replay of its logs and the simulator alike. The built-in `paper_rmp` is the paper's
 // robot: an RMP 200, two SICK LMS291 (one horizontal, one vertical pushbroom) and a 2 m GPS.
+// The error models (a base's slip, a receiver's error budget) are what the simulator makes
+// of a robot of this kind; the rest is the robot.
 //
 // Robot frame: origin at the middle of the wheel axle, x forward, y left, z up; the chassis
 // pitches about the axle (positive pitch: nose down, leaning forward) and rolls with the ground
@@ -14,19 +17,15 @@
 #include <string_view>
 #include <vector>
 
+#include "blockmap/hal/devices/laser_scanners.hpp"
+#include "blockmap/hal/devices/segway_base.hpp"
 #include "blockmap/hal/protocol/segway_rmp.hpp"
 #include "blockmap/hal/protocol/sick_lms2xx.hpp"
+#include "blockmap/map/scan_projector.hpp"
 #include "blockmap/msg/gps_fix.hpp"
+#include "blockmap/pipeline/mapper_config.hpp"
 
-namespace blockmap::hal::sim {
-
-struct Mount {
-  Eigen::Vector3d position_m = Eigen::Vector3d::Zero();
-  double roll_rad = 0.0;
-  double pitch_rad = 0.0;
-  double yaw_rad = 0.0;
-  [[nodiscard]] Eigen::Matrix3d rotation() const;
-};
+namespace blockmap::hal::config {
 
 struct BaseSpec {
   protocol::segway_rmp::Model model = protocol::segway_rmp::Model::kRmp200;
@@ -68,7 +67,7 @@ enum class LaserProtocol : std::uint8_t { kLms2xx, kTim };
 struct LaserSpec {
   std::string name;  // log file laser_<name>.bytelog
   LaserProtocol protocol = LaserProtocol::kLms2xx;
-  Mount mount;
+  map::SensorMount mount;
   protocol::sick_lms2xx::AngularVariant variant =
       protocol::sick_lms2xx::AngularVariant::k180Deg1Deg;
   double scan_rate_hz = 75.0;  // the mirror turns at 75 Hz; 0.5 deg needs two turns per scan
@@ -124,4 +123,15 @@ struct RobotSpec {
 // simulator, the replay of byte logs) has LMS2xx lasers only.
 void require_lms2xx_lasers(const RobotSpec& robot, std::string_view user);
 
-}  // namespace blockmap::hal::sim
+// The device layer's configuration for the robot's base: its RMP model and yaw sign.
+[[nodiscard]] devices::SegwayBaseConfig segway_base_config_for(const RobotSpec& robot);
+
+// The device layer's configuration for one of the robot's LMS2xx lasers: its codec settings
+// and, when one mirror turn makes a scan, its timing.
+[[nodiscard]] devices::Lms2xxScannerConfig lms2xx_config_for(const LaserSpec& spec);
+
+// The mapper's configuration for a robot: its lasers' mounts (the first kMaxLasers) and its
+// GPS antenna's height; everything else at its defaults.
+[[nodiscard]] pipeline::MapperConfig mapper_config_for(const RobotSpec& robot);
+
+}  // namespace blockmap::hal::config

@@ -1,4 +1,4 @@
-// The daemon on real pseudo-terminals (issue 9's fault tests, on the host): recorded bytes of a
+// The daemon on real pseudo-terminals (the daemon's fault tests, on the host): recorded bytes of a
 // simulated run are played onto ptys at their recorded pace (LogPlayer), the daemon reads them
 // through termios like the robot's serial lines, and faults are made while it maps: a laser
 // unplugged and plugged back in, a corrupted serial stream, the GPS silent for seconds, the
@@ -279,8 +279,7 @@ TEST(DaemonFaults, UnpluggedCorruptedSilentAndFloodedDevicesAreCountedAndNothing
   // heading is a few degrees uncertain, and two runs of it map the same wall that far apart.
   // For the same reason the facade comes out as one plane or as two or three turned a few
   // degrees apart, as the threads' timing feeds the filter: the largest wall and the walls'
-  // points together are what every run shares. 2026-12-03, 7 runs, alone and with a core
-  // busy: the largest 15,541-36,840 points, all walls 39,000-42,000.)
+  // points together are what every run shares, alone and with a core busy.)
   const std::vector<Wall> walls = walls_of(scratch / "out" / "planes.json");
   double wall_points = 0.0;
   double largest_wall = 0.0;
@@ -432,7 +431,7 @@ TEST(GuestSession, TheDaemonsMapIsTheReplaysWithinTheFiltersSpread) {
   const std::vector<Wall> replay_walls = walls_of(dir / "replay" / "planes.json");
   // The session is the loop's first minute, where the filter's heading is still settling: the
   // same log replayed with filter seeds 1-8 puts the wall 9 m off the start anywhere from -4.5
-  // to +9.6 deg and the large 5 m wall from -19.6 to -14.7 deg, 3.9 to 6.2 m out (issue 7's
+  // to +9.6 deg and the large 5 m wall from -19.6 to -14.7 deg, 3.9 to 6.2 m out (the filter's
   // filter accuracy). The daemon, stamping on the receive clock, is another such run (one guest
   // run had that wall at +17.8 deg): 20 deg and 3 m.
   constexpr double kSpreadDeg = 20.0;

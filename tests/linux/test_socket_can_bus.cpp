@@ -13,6 +13,7 @@
 #include "blockmap/core/spsc_queue.hpp"
 #include "blockmap/hal/devices/segway_base.hpp"
 #include "blockmap/hal/linux/socket_can_bus.hpp"
+#include "blockmap/hal/linux/steady_clock.hpp"
 #include "blockmap/hal/protocol/segway_rmp.hpp"
 #include "test_units.hpp"
 
@@ -29,12 +30,6 @@ bool have_vcan0() {
   }
   ::close(fd);
   return ::if_nametoindex("vcan0") != 0;
-}
-
-TimestampNs monotonic_ns() {
-  timespec now{};
-  ::clock_gettime(CLOCK_MONOTONIC, &now);
-  return static_cast<TimestampNs>(now.tv_sec) * 1'000'000'000 + now.tv_nsec;
 }
 
 class SocketCanTest : public ::testing::Test {
@@ -59,11 +54,11 @@ TEST_F(SocketCanTest, AFrameCrossesTheBusWithItsKernelStamp) {
   sent.id = 0x401;  // an RMP status frame's id
   sent.dlc = 8;
   sent.data = {0xFF, 0xF9, 0x00, 0x10, 0x80, 0x00, 0x01, 0x02};
-  const TimestampNs before = monotonic_ns();
+  const TimestampNs before = SteadyClock{}.now_ns();
   ASSERT_EQ(sender_.send(sent), IoStatus::kOk);
   CanFrame got;
   const CanReceiveResult result = receive(got);
-  const TimestampNs after = monotonic_ns();
+  const TimestampNs after = SteadyClock{}.now_ns();
   ASSERT_EQ(result.status, IoStatus::kOk);
   EXPECT_EQ(got.id, 0x401u);
   EXPECT_FALSE(got.extended);

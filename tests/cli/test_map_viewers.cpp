@@ -1,4 +1,4 @@
-// The maps open in the tools people look at them with (issue 8): the VRML map in view3dscene
+// The maps open in the tools people look at them with: the VRML map in view3dscene
 // (Debian's VRML/X3D viewer: its parser must accept every line, and its rendering from the
 // map's first viewpoint must show the building in the middle of the picture), and the GeoJSON
 // footprints in GDAL (valid polygons whose geodesic area and position, computed by GDAL's own

@@ -1,0 +1,130 @@
+#include "blockmap/hal/config/mapper_config.hpp"
+
+#include <cstdint>
+#include <string>
+
+#include "config_tables.hpp"
+#include "toml_reader.hpp"
+
+namespace blockmap::hal::config {
+namespace {
+
+// The whole run's path at once, and the final planes moved with it (docs/localize.md, The
+// whole path at once).
+void read_rigid_path_table(TableReader& t, pipeline::MapperConfig& c) {
+  // Left out: on wherever scans are matched. Given: asked for, or off.
+  if (t.has("enabled")) {
+    c.rigid_path =
+        t.boolean_or("enabled", false) ? pipeline::RigidPath::kOn : pipeline::RigidPath::kOff;
+  }
+  // The stream shows the planes where the latest solve puts them (false: as drawn until
+  // the end), reported again when that moves one more than view_change_m.
+  c.rigid_view = t.boolean_or("view", c.rigid_view);
+  c.rigid_view_change_m = t.positive_or("view_change_m", c.rigid_view_change_m);
+  localize::PathSmootherConfig& r = c.path;
+  r.max_keyframes = t.capacity_or("max_keyframes", r.max_keyframes);
+  r.keyframe_spacing_m = t.positive_or("keyframe_spacing_m", r.keyframe_spacing_m);
+  r.along_sigma_per_sqrt_m = t.positive_or("along_sigma_per_sqrt_m", r.along_sigma_per_sqrt_m);
+  r.across_sigma_per_sqrt_m = t.positive_or("across_sigma_per_sqrt_m", r.across_sigma_per_sqrt_m);
+  r.yaw_sigma_per_sqrt_m = t.positive_or("yaw_sigma_per_sqrt_m", r.yaw_sigma_per_sqrt_m);
+  r.yaw_sigma_per_sqrt_s = t.positive_or("yaw_sigma_per_sqrt_s", r.yaw_sigma_per_sqrt_s);
+  r.bias_sigma_m = t.positive_or("bias_sigma_m", r.bias_sigma_m);
+  r.bias_time_s = t.positive_or("bias_time_s", r.bias_time_s);
+  r.fix_sigma_m = t.positive_or("fix_sigma_m", r.fix_sigma_m);
+  // A carrier-phase (RTK) fix's sigma, per fix: no slow error is solved for it.
+  r.rtk_fixed_sigma_m = t.positive_or("rtk_fixed_sigma_m", r.rtk_fixed_sigma_m);
+  r.rtk_float_sigma_m = t.positive_or("rtk_float_sigma_m", r.rtk_float_sigma_m);
+  r.iterations = static_cast<std::uint32_t>(t.capacity_or("iterations", r.iterations));
+  // Ties between passes (0: none, the path's band alone).
+  r.max_ties = static_cast<std::size_t>(t.non_negative(
+      "max_ties",
+      static_cast<double>(t.integer_or("max_ties", static_cast<std::int64_t>(r.max_ties)))));
+  r.tie_offset_sigma_m = t.positive_or("tie_offset_sigma_m", r.tie_offset_sigma_m);
+  r.tie_angle_sigma_deg = t.positive_or("tie_angle_sigma_deg", r.tie_angle_sigma_deg);
+  r.tie_huber_sigmas = t.positive_or("tie_huber_sigmas", r.tie_huber_sigmas);
+  r.tie_gate_deg = t.positive_or("tie_gate_deg", r.tie_gate_deg);
+  r.cg_iterations = static_cast<std::uint32_t>(t.capacity_or("cg_iterations", r.cg_iterations));
+  t.finish();
+  if (const std::string problem = localize::validate(r); !problem.empty()) {
+    t.reject(problem);
+  }
+}
+
+// The detector's table as the mapper reads it: the window sets its sample capacity, and a
+// robot whose lasers are all level sees its walls as lines.
+void read_mapper_planes_table(TableReader& t, pipeline::MapperConfig& c) {
+  if (t.has("max_samples")) {
+    t.fail("max_samples",
+           "the mapper's detector holds the window's samples: set [window] "
+           "max_samples");
+  }
+  const bool lines_set = t.has("walls_from_lines");
+  read_planes_table(t, c.planes);
+  if (lines_set && !c.planes.walls_from_lines && pipeline::only_level_lasers(c)) {
+    t.fail("walls_from_lines",
+           "the robot's lasers are all level: its walls are lines, so it "
+           "cannot be false");
+  }
+}
+
+void read_mapper_table(TableReader& t, pipeline::MapperConfig& c) {
+  // Seconds of scan time between two plane extractions: the plane list's update period,
+  // and most of the mapper's cost (docs/mapper.md, Speed).
+  c.extract_every_s = t.positive_or("extract_every_s", c.extract_every_s);
+  // Scans are drawn this many seconds late, with the particle filter's smoothed path
+  // instead of its estimate of the moment: straight walls, a plane list as late.
+  c.localizer.map_pose_lag_s = t.non_negative_or("pose_lag_s", c.localizer.map_pose_lag_s);
+  if (const std::string problem = localize::validate(c.localizer); !problem.empty()) {
+    t.fail("pose_lag_s", problem);
+  }
+  t.finish();
+}
+
+}  // namespace
+
+pipeline::MapperConfig parse_mapper_config(std::string_view text, std::string_view source,
+                                           const pipeline::MapperConfig& base) {
+  const toml::table document = parse_document(text, source);
+  TableReader root(document, std::string(source), "");
+  pipeline::MapperConfig c = base;
+  if (auto table = root.table("planes")) {
+    read_mapper_planes_table(*table, c);
+  }
+  if (auto table = root.table("buildings")) {
+    read_buildings_table(*table, c.buildings);
+  }
+  if (auto table = root.table("window")) {
+    read_window_table(*table, pipeline::window_config(c).voxel_size_m, c.window);
+  }
+  if (auto table = root.table("projection")) {
+    read_projection_table(*table, c.projection);
+  }
+  if (auto table = root.table("free_space")) {
+    read_free_space_table(*table, c.free_space);
+  }
+  if (auto table = root.table("rigid_path")) {
+    read_rigid_path_table(*table, c);
+  }
+  if (auto table = root.table("scan_matching")) {
+    read_scan_matching_table(*table, c.scan_matching);
+  }
+  if (auto table = root.table("registry")) {
+    read_registry_table(*table, c.registry);
+  }
+  if (auto table = root.table("mapper")) {
+    read_mapper_table(*table, c);
+  }
+  if (c.planes.max_blocks > c.window.max_samples) {
+    throw ConfigError(std::string(source) +
+                      ": planes.max_blocks: must be at most [window] max_samples (0: a quarter of "
+                      "them)");
+  }
+  return c;
+}
+
+pipeline::MapperConfig load_mapper_config(const std::filesystem::path& path,
+                                          const pipeline::MapperConfig& base) {
+  return parse_mapper_config(read_config_file(path), path.string(), base);
+}
+
+}  // namespace blockmap::hal::config
