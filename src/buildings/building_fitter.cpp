@@ -12,7 +12,6 @@
 namespace blockmap::buildings {
 
 using footprint::from_frame;
-using footprint::padded;
 
 namespace {
 
@@ -92,13 +91,14 @@ std::size_t BuildingFitter::arena_bytes(const BuildingsConfig& config,
   const std::size_t blocks = free_space_cells == 0
                                  ? 0
                                  : BlockTracer::arena_bytes(config, free_space_cells) +
-                                       padded(config.max_walls * sizeof(std::uint32_t)) +
-                                       padded(config.max_walls * sizeof(SideWall));
-  return blocks + padded(config.max_walls * sizeof(WallSegment)) +
-         2 * padded(config.max_walls * sizeof(std::uint32_t)) +
-         padded(config.max_walls * sizeof(Piece)) + padded(config.max_walls * sizeof(Roof)) +
-         padded(config.max_buildings * sizeof(Building)) + 2 * past_set_bytes(config) +
-         padded(remembered) + 2 * padded(remembered * sizeof(std::uint32_t));
+                                       Arena::array_bytes<std::uint32_t>(config.max_walls) +
+                                       Arena::array_bytes<SideWall>(config.max_walls);
+  return blocks + Arena::array_bytes<WallSegment>(config.max_walls) +
+         2 * Arena::array_bytes<std::uint32_t>(config.max_walls) +
+         Arena::array_bytes<Piece>(config.max_walls) + Arena::array_bytes<Roof>(config.max_walls) +
+         Arena::array_bytes<Building>(config.max_buildings) + 2 * past_set_bytes(config) +
+         Arena::array_bytes<std::uint8_t>(remembered) +
+         2 * Arena::array_bytes<std::uint32_t>(remembered);
 }
 
 std::size_t BuildingFitter::memory_bytes() const noexcept {

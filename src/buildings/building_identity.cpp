@@ -8,8 +8,6 @@
 
 namespace blockmap::buildings {
 
-using footprint::padded;
-
 void BuildingFitter::init_past_set(Arena& arena, PastSet& set) const {
   const std::size_t remembered = 2 * config_.max_buildings;
   set.ids = arena.allocate_array<std::uint32_t>(remembered, "buildings.fitter");
@@ -22,9 +20,9 @@ void BuildingFitter::init_past_set(Arena& arena, PastSet& set) const {
 
 std::size_t BuildingFitter::past_set_bytes(const BuildingsConfig& config) noexcept {
   const std::size_t remembered = 2 * config.max_buildings;
-  return padded(remembered * sizeof(std::uint32_t)) + padded(remembered * sizeof(Extent)) +
-         padded(remembered * sizeof(std::uint16_t)) +
-         padded(remembered * kMaxBuildingWalls * sizeof(PastPlane));
+  return Arena::array_bytes<std::uint32_t>(remembered) + Arena::array_bytes<Extent>(remembered) +
+         Arena::array_bytes<std::uint16_t>(remembered) +
+         Arena::array_bytes<PastPlane>(remembered * kMaxBuildingWalls);
 }
 
 BuildingFitter::Extent BuildingFitter::extent_of(const Building& building) noexcept {

@@ -58,9 +58,4 @@ inline bool on_line(const Piece& piece, int axis, double level, double tolerance
   return piece.axis == axis && std::abs(piece.level - level) <= tolerance_m;
 }
 
-// The bytes Arena::allocate_array takes for `bytes` of elements, at most.
-[[nodiscard]] constexpr std::size_t padded(std::size_t bytes) noexcept {
-  return bytes + Arena::kMaxPaddingBytes;
-}
-
 }  // namespace blockmap::buildings::footprint

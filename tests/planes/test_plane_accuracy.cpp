@@ -82,7 +82,7 @@ TEST(PlaneRobustness, PartialWithSlopedGroundAndLeaningWalls) {
 // Pose noise (0.5 deg / 5 cm, the project's target): every scan of every laser gets its own error,
 // 0.5 deg about each axis and 5 cm along each, so a wall 15 m away is a slab about 0.13 m
 // thick. usc_block and benning meet the recall (benning's glimpsed east and west
-// sides through the corner look); partial does not (docs/planes.md has the table).
+// sides through the corner look); partial does not (docs/benchmarks.md has the table).
 constexpr hal::sim::PoseNoise kScanPoseNoise{0.5 * std::numbers::pi / 180.0, 0.05, 0.0};
 
 // The first minute of usc_block (the sanitized and QEMU trees) has three faces; its ground,
