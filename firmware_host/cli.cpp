@@ -41,10 +41,11 @@ int run(int argc, const char* const* argv, std::ostream& out, std::ostream& err)
   app.require_subcommand(1, 1);
   app.fallthrough(false);
 
-  const std::vector<Command> commands = {
-      add_info_command(app),      add_decode_command(app),   add_planes_command(app),
-      add_buildings_command(app), add_simulate_command(app), add_replay_command(app),
-      add_import_command(app),    add_run_command(app),      add_play_command(app)};
+  const std::vector<Command> commands = {add_info_command(app),     add_decode_command(app),
+                                         add_planes_command(app),   add_buildings_command(app),
+                                         add_simulate_command(app), add_replay_command(app),
+                                         add_import_command(app),   add_run_command(app),
+                                         add_play_command(app),     add_score_command(app)};
 
   try {
     app.parse(argc, argv);

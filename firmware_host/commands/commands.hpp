@@ -39,6 +39,8 @@ Command add_run_command(CLI::App& app);
 Command add_replay_command(CLI::App& app);
 // `blockmap play DIR --pty-dir PATH`: recorded device logs onto pseudo-terminals and CAN.
 Command add_play_command(CLI::App& app);
+// `blockmap score MAP TRUTH`: a map of a simulated run against the run's truth.
+Command add_score_command(CLI::App& app);
 // `blockmap import TRAJECTORY --origin ... --out DIR`: device logs from a reference trajectory.
 Command add_import_command(CLI::App& app);
 

@@ -1,0 +1,297 @@
+// `blockmap score MAP TRUTH [--json]`: a map made from a simulated run against the run's truth
+// (docs/formats.md, truth.json). MAP is what `replay --out` wrote (trajectory.csv, planes.json,
+// buildings.json), TRUTH what `simulate --out` wrote (truth.json). The estimated path is laid
+// onto the true one by the least-squares rigid motion (hal/sim/truth_score.hpp); the path
+// error, the planes and the footprints are scored after it, and its shift is reported beside.
+#include <CLI/CLI.hpp>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <ostream>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "blockmap/core/angles.hpp"
+#include "blockmap/hal/sim/truth_score.hpp"
+#include "cli.hpp"
+#include "commands/commands.hpp"
+#include "outputs/plane_json.hpp"
+
+namespace blockmap::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using hal::sim::TimedPosition;
+
+struct ScoreOptions {
+  std::string map;
+  std::string truth;
+  bool json = false;
+};
+
+// A footprint with its shape's name, from buildings.json or truth.json.
+struct Footprint {
+  int id = 0;
+  std::string shape;
+  std::vector<Eigen::Vector2d> corners_m;
+};
+
+struct Truth {
+  std::vector<TimedPosition> path;
+  std::vector<hal::sim::TruthFace> faces;
+  std::vector<Footprint> buildings;
+};
+
+struct Estimate {
+  std::vector<TimedPosition> path;
+  std::vector<msg::PlanePatch> planes;
+  std::vector<Footprint> buildings;
+};
+
+nlohmann::json read_json(const fs::path& path) {
+  std::ifstream file(path);
+  if (!file) {
+    throw std::runtime_error(path.string() + ": cannot open");
+  }
+  try {
+    return nlohmann::json::parse(file);
+  } catch (const nlohmann::json::exception& error) {
+    throw std::runtime_error(path.string() + ": not JSON (" + error.what() + ")");
+  }
+}
+
+Eigen::Vector3d vec3_of(const nlohmann::json& value) {
+  return {value.at(0).get<double>(), value.at(1).get<double>(), value.at(2).get<double>()};
+}
+
+std::vector<Eigen::Vector2d> footprint_of(const nlohmann::json& corners) {
+  std::vector<Eigen::Vector2d> out;
+  for (const nlohmann::json& corner : corners) {
+    out.emplace_back(corner.at(0).get<double>(), corner.at(1).get<double>());
+  }
+  return out;
+}
+
+hal::sim::SurfaceKind surface_of(const std::string& kind) {
+  if (kind == "wall") {
+    return hal::sim::SurfaceKind::kWall;
+  }
+  return kind == "roof" ? hal::sim::SurfaceKind::kRoof : hal::sim::SurfaceKind::kGround;
+}
+
+Truth read_truth(const fs::path& path) {
+  const nlohmann::json document = read_json(path);
+  Truth truth;
+  try {
+    for (const nlohmann::json& pose : document.at("trajectory")) {
+      truth.path.push_back({pose.at("t_s").get<double>(),
+                            {pose.at("x_m").get<double>(), pose.at("y_m").get<double>(),
+                             pose.at("z_m").get<double>()}});
+    }
+    for (const nlohmann::json& face : document.at("faces")) {
+      hal::sim::TruthFace out;
+      out.id = face.at("id").get<int>();
+      out.kind = surface_of(face.at("kind").get<std::string>());
+      out.normal = vec3_of(face.at("normal"));
+      out.d_m = face.at("d").get<double>();
+      for (const nlohmann::json& corner : face.at("corners")) {
+        out.corners_m.push_back(vec3_of(corner));
+      }
+      out.returns = face.at("returns").get<std::uint64_t>();
+      truth.faces.push_back(out);
+    }
+    for (const nlohmann::json& building : document.at("buildings")) {
+      truth.buildings.push_back({building.at("id").get<int>(),
+                                 building.at("shape").get<std::string>(),
+                                 footprint_of(building.at("footprint"))});
+    }
+  } catch (const nlohmann::json::exception& error) {
+    throw std::runtime_error(path.string() + ": not a truth.json (" + error.what() + ")");
+  }
+  return truth;
+}
+
+// trajectory.csv: t_s,x_m,y_m,z_m,roll_rad,pitch_rad,yaw_rad.
+std::vector<TimedPosition> read_trajectory(const fs::path& path) {
+  std::ifstream file(path);
+  if (!file) {
+    throw std::runtime_error(path.string() + ": cannot open");
+  }
+  std::vector<TimedPosition> path_m;
+  std::string line;
+  std::getline(file, line);  // the header
+  for (std::size_t row = 2; std::getline(file, line); ++row) {
+    std::istringstream fields(line);
+    TimedPosition pose;
+    char comma = 0;
+    if (!(fields >> pose.t_s >> comma >> pose.position_m.x() >> comma >> pose.position_m.y() >>
+          comma >> pose.position_m.z())) {
+      throw std::runtime_error(path.string() + ":" + std::to_string(row) + ": not a pose row");
+    }
+    path_m.push_back(pose);
+  }
+  return path_m;
+}
+
+Estimate read_estimate(const fs::path& folder) {
+  Estimate estimate;
+  estimate.path = read_trajectory(folder / "trajectory.csv");
+  try {
+    estimate.planes = planes_from_json(read_json(folder / "planes.json"));
+  } catch (const std::invalid_argument& error) {
+    throw std::runtime_error((folder / "planes.json").string() + ": " + error.what());
+  }
+  const nlohmann::json buildings = read_json(folder / "buildings.json");
+  try {
+    for (const nlohmann::json& building : buildings.at("buildings")) {
+      estimate.buildings.push_back({building.at("id").get<int>(),
+                                    building.at("shape").get<std::string>(),
+                                    footprint_of(building.at("footprint"))});
+    }
+  } catch (const nlohmann::json::exception& error) {
+    throw std::runtime_error((folder / "buildings.json").string() + ": " + error.what());
+  }
+  return estimate;
+}
+
+struct BuildingScore {
+  std::size_t buildings = 0;
+  std::size_t shapes_right = 0;
+  double mean_iou = 0.0;
+};
+
+// Each true building against the estimated footprint that overlaps it most, laid onto the
+// truth by the path's motion.
+BuildingScore score_buildings(const Truth& truth, const Estimate& estimate,
+                              const hal::sim::PathAlignment& alignment) {
+  BuildingScore score;
+  double iou_sum = 0.0;
+  for (const Footprint& building : truth.buildings) {
+    double best_iou = 0.0;
+    std::string best_shape;
+    for (const Footprint& mapped : estimate.buildings) {
+      std::vector<Eigen::Vector2d> moved;
+      for (const Eigen::Vector2d& corner_m : mapped.corners_m) {
+        moved.push_back(alignment.apply(corner_m));
+      }
+      const double iou = hal::sim::footprint_iou(moved, building.corners_m);
+      if (iou > best_iou) {
+        best_iou = iou;
+        best_shape = mapped.shape;
+      }
+    }
+    ++score.buildings;
+    score.shapes_right += best_shape == building.shape ? 1U : 0U;
+    iou_sum += best_iou;
+  }
+  score.mean_iou = score.buildings == 0 ? 0.0 : iou_sum / static_cast<double>(score.buildings);
+  return score;
+}
+
+nlohmann::json score_json(const hal::sim::PathAlignment& path, const hal::sim::PlaneScore& planes,
+                          const BuildingScore& buildings) {
+  return {{"path",
+           {{"poses", path.pairs},
+            {"rms_m", path.rms_m},
+            {"median_m", path.median_m},
+            {"max_m", path.max_m},
+            {"alignment",
+             {{"yaw_deg", path.yaw_rad / kRadiansPerDegree},
+              {"shift_m", {path.shift_m.x(), path.shift_m.y(), path.shift_m.z()}}}}}},
+          {"planes",
+           {{"walls_found", planes.walls_found},
+            {"walls", planes.walls_considered},
+            {"faces_found", planes.faces_found},
+            {"faces", planes.faces_considered},
+            {"structural_real", planes.structural_real},
+            {"structural", planes.structural_planes},
+            {"faces_found_twice", planes.faces_reported_twice}}},
+          {"buildings",
+           {{"buildings", buildings.buildings},
+            {"shapes_right", buildings.shapes_right},
+            {"mean_iou", buildings.mean_iou}}}};
+}
+
+void print_score(std::ostream& out, const hal::sim::PathAlignment& path,
+                 const hal::sim::PlaneScore& planes, const BuildingScore& buildings) {
+  char line[240];
+  std::snprintf(line, sizeof line,
+                "path: %zu poses; laid onto the truth by %.2f deg and (%.2f %.2f %.2f) m; after "
+                "it %.3f m RMS, median %.3f m, worst %.3f m\n",
+                path.pairs, path.yaw_rad / kRadiansPerDegree, path.shift_m.x(), path.shift_m.y(),
+                path.shift_m.z(), path.rms_m, path.median_m, path.max_m);
+  out << line;
+  std::snprintf(line, sizeof line,
+                "planes: walls found %zu of %zu, faces found %zu of %zu (3 deg, 0.15 m, faces "
+                "with 200 returns); wall, roof and ground planes real %zu of %zu; faces found "
+                "twice %zu\n",
+                planes.walls_found, planes.walls_considered, planes.faces_found,
+                planes.faces_considered, planes.structural_real, planes.structural_planes,
+                planes.faces_reported_twice);
+  out << line;
+  std::snprintf(
+      line, sizeof line, "buildings: mean footprint IoU %.3f over %zu, shapes right %zu of %zu\n",
+      buildings.mean_iou, buildings.buildings, buildings.shapes_right, buildings.buildings);
+  out << line;
+}
+
+int run_score(const ScoreOptions& options, std::ostream& out, std::ostream& err) {
+  try {
+    fs::path truth_path(options.truth);
+    if (fs::is_directory(truth_path)) {
+      truth_path /= "truth.json";
+    }
+    const Truth truth = read_truth(truth_path);
+    const Estimate estimate = read_estimate(options.map);
+    const hal::sim::PathAlignment path = hal::sim::align_path(estimate.path, truth.path);
+    if (path.pairs == 0) {
+      err << "blockmap: score: " << options.map
+          << "/trajectory.csv has no pose within the truth's time span\n";
+      return kExitFailure;
+    }
+    std::vector<msg::PlanePatch> moved;
+    for (const msg::PlanePatch& plane : estimate.planes) {
+      moved.push_back(path.apply(plane));
+    }
+    const hal::sim::PlaneScore planes = hal::sim::score_planes(truth.faces, moved);
+    const BuildingScore buildings = score_buildings(truth, estimate, path);
+    if (options.json) {
+      out << score_json(path, planes, buildings).dump() << '\n';
+    } else {
+      print_score(out, path, planes, buildings);
+    }
+    return kExitOk;
+  } catch (const std::exception& error) {
+    err << "blockmap: score: " << error.what() << '\n';
+    return kExitFailure;
+  }
+}
+
+}  // namespace
+
+Command add_score_command(CLI::App& app) {
+  auto options = std::make_shared<ScoreOptions>();
+  CLI::App* sub = app.add_subcommand(
+      "score",
+      "Score a map made from a simulated run against the run's truth.json, after laying "
+      "its path onto the true one (docs/formats.md, blockmap score)");
+  sub->add_option("map", options->map,
+                  "what replay --out wrote: trajectory.csv, planes.json, "
+                  "buildings.json")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  sub->add_option("truth", options->truth, "what simulate --out wrote (truth.json), or the file")
+      ->required()
+      ->check(CLI::ExistingPath);
+  sub->add_flag("--json", options->json, "one JSON object instead of three lines");
+  return {sub, [options](std::ostream& out, std::ostream& err) {
+            return run_score(*options, out, err);
+          }};
+}
+
+}  // namespace blockmap::cli

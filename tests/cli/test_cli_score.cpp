@@ -1,0 +1,88 @@
+// `blockmap score`: a replay's map of a simulated run against the run's truth.json, after the
+// estimated path is laid onto the true one.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "cli.hpp"
+#include "cli_runner.hpp"
+#include "long_test.hpp"
+#include "scratch.hpp"
+
+namespace blockmap::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+using testing::read_file;
+using testing::run_cli;
+using blockmap::testing::scratch;
+
+class ScoreCommand : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    std::string err;
+    logs_ =
+        testing::simulated_logs({"--world", "usc_block", "--seed", "2", "--duration-s", "60"}, err);
+    ASSERT_FALSE(logs_.empty()) << err;
+    const nlohmann::json truth = nlohmann::json::parse(read_file(logs_ / "truth.json"));
+    const nlohmann::json& o = truth["origin"];
+    map_ = scratch("score_map");
+    const testing::CliResult replay =
+        run_cli({"replay", logs_.string(), "--out", map_.string(), "--origin",
+                 std::to_string(o["latitude_deg"].get<double>()) + "," +
+                     std::to_string(o["longitude_deg"].get<double>()) + "," +
+                     std::to_string(o["height_m"].get<double>())});
+    ASSERT_EQ(replay.status, kExitOk) << replay.err;
+  }
+  static inline fs::path logs_;
+  static inline fs::path map_;
+};
+
+TEST_F(ScoreCommand, ScoresAReplaysMapAfterLayingItsPathOntoTheTruth) {
+  const testing::CliResult result = run_cli({"score", map_.string(), logs_.string(), "--json"});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  const nlohmann::json score = nlohmann::json::parse(result.out);
+  // A pose every 0.25 s once the filter has a fix; laid onto the truth, the path is within the
+  // receiver's 2 m everywhere, and its worst is no better than its median.
+  EXPECT_GT(score["path"]["poses"].get<int>(), 150);
+  EXPECT_LT(score["path"]["rms_m"].get<double>(), 2.0);
+  EXPECT_GE(score["path"]["max_m"].get<double>(), score["path"]["median_m"].get<double>());
+  EXPECT_LT(std::abs(score["path"]["alignment"]["yaw_deg"].get<double>()), 10.0);
+  // The first minute sees the ground and the first walls.
+  EXPECT_GE(score["planes"]["faces"].get<int>(), 2);
+  EXPECT_LE(score["planes"]["walls_found"].get<int>(), score["planes"]["walls"].get<int>());
+  EXPECT_LE(score["planes"]["structural_real"].get<int>(),
+            score["planes"]["structural"].get<int>());
+  EXPECT_EQ(score["buildings"]["buildings"].get<int>(), 1);  // usc_block's one building
+  // The same in three lines.
+  const testing::CliResult lines =
+      run_cli({"score", map_.string(), (logs_ / "truth.json").string()});
+  ASSERT_EQ(lines.status, kExitOk) << lines.err;
+  EXPECT_NE(lines.out.find("path: "), std::string::npos);
+  EXPECT_NE(lines.out.find("planes: walls found "), std::string::npos);
+  EXPECT_NE(lines.out.find("buildings: mean footprint IoU "), std::string::npos);
+}
+
+TEST_F(ScoreCommand, AMissingOrDamagedFileIsOneLineAndAFailure) {
+  const fs::path empty = scratch("score_empty");
+  fs::create_directories(empty);
+  const testing::CliResult no_map = run_cli({"score", empty.string(), logs_.string()});
+  EXPECT_EQ(no_map.status, kExitFailure);
+  EXPECT_NE(no_map.err.find("trajectory.csv: cannot open"), std::string::npos) << no_map.err;
+  EXPECT_EQ(std::count(no_map.err.begin(), no_map.err.end(), '\n'), 1);
+  const fs::path bad_truth = scratch("score_bad_truth") / "truth.json";
+  fs::create_directories(bad_truth.parent_path());
+  std::ofstream(bad_truth) << "{\"trajectory\": []";
+  const testing::CliResult damaged = run_cli({"score", map_.string(), bad_truth.string()});
+  EXPECT_EQ(damaged.status, kExitFailure);
+  EXPECT_NE(damaged.err.find("not JSON"), std::string::npos) << damaged.err;
+  EXPECT_EQ(std::count(damaged.err.begin(), damaged.err.end(), '\n'), 1);
+}
+
+}  // namespace
+}  // namespace blockmap::cli
