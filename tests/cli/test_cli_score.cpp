@@ -18,9 +18,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
+using blockmap::testing::scratch;
 using testing::read_file;
 using testing::run_cli;
-using blockmap::testing::scratch;
 
 class ScoreCommand : public ::testing::Test {
  protected:
