@@ -20,8 +20,8 @@ std::vector<TimedPosition> block_loop() {
   std::vector<TimedPosition> path;
   double t_s = 100.0;
   for (std::size_t side = 0; side + 1 < corners.size(); ++side) {
-    const Eigen::Vector2d from = corners[side];
-    const Eigen::Vector2d to = corners[side + 1];
+    const Eigen::Vector2d& from = corners[side];
+    const Eigen::Vector2d& to = corners[side + 1];
     const auto steps = static_cast<int>(std::lround((to - from).norm() / kStepM));
     for (int k = 0; k < steps; ++k) {
       const Eigen::Vector2d p = from + (to - from) * (static_cast<double>(k) / steps);
