@@ -100,6 +100,9 @@ std::string MappingSession::finish(const std::optional<hal::GeodeticPoint>& orig
                                         mapper_.counters().points, wall_s_,
                                         cloud_ ? std::span<const Eigen::Vector3f>(cloud_->points())
                                                : std::span<const Eigen::Vector3f>{});
+  if (problem.empty()) {
+    problem = outputs_.write_map_path(mapper_.rigid_path());
+  }
   if (problem.empty() && cloud_) {
     hal::cloud::write_ply(outputs_.dir() / "cloud.ply", cloud_->points());
   }

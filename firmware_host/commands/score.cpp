@@ -1,13 +1,15 @@
 // `blockmap score MAP TRUTH [--json]`: a map made from a simulated run against the run's truth
-// (docs/formats.md, truth.json). MAP is what `replay --out` wrote (trajectory.csv, planes.json,
-// buildings.json), TRUTH what `simulate --out` wrote (truth.json). The estimated path is laid
-// onto the true one by the least-squares rigid motion (hal/sim/truth_score.hpp); the path
+// (docs/formats.md, truth.json). MAP is what `replay --out` wrote (path.csv or trajectory.csv,
+// planes.json, buildings.json), TRUTH what `simulate --out` wrote (truth.json). The estimated path
+// is laid onto the true one by the least-squares rigid motion (hal/sim/truth_score.hpp); the path
 // error, the planes and the footprints are scored after it, and its shift is reported beside.
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <ostream>
@@ -48,7 +50,13 @@ struct Truth {
 };
 
 struct Estimate {
+  // The path the planes were laid with: path.csv's solved keyframes when the mapper solved a
+  // rigid path, otherwise trajectory.csv's smoothed poses; and the scan matcher's own path
+  // (path.csv's matched columns; empty without them), the local SLAM's shape before the
+  // fixes placed it.
   std::vector<TimedPosition> path;
+  std::vector<TimedPosition> matched;
+  std::string path_file;
   std::vector<msg::PlanePatch> planes;
   std::vector<Footprint> buildings;
 };
@@ -138,9 +146,62 @@ std::vector<TimedPosition> read_trajectory(const fs::path& path) {
   return path_m;
 }
 
+// The height of `path_m` at `t_s`, linearly between its poses (its ends beyond them).
+double height_at(const std::vector<TimedPosition>& path_m, double t_s) {
+  const auto later =
+      std::lower_bound(path_m.begin(), path_m.end(), t_s,
+                       [](const TimedPosition& pose, double t) { return pose.t_s < t; });
+  if (later == path_m.begin()) {
+    return later->position_m.z();
+  }
+  if (later == path_m.end()) {
+    return path_m.back().position_m.z();
+  }
+  const auto earlier = std::prev(later);
+  const double span_s = later->t_s - earlier->t_s;
+  const double f = span_s > 0.0 ? (t_s - earlier->t_s) / span_s : 0.0;
+  return earlier->position_m.z() + f * (later->position_m.z() - earlier->position_m.z());
+}
+
+// path.csv: t_s,x_m,y_m,yaw_rad,matched_x_m,matched_y_m,matched_yaw_rad, its heights those of
+// the trajectory at the same times (the planes were drawn at them).
+void read_map_path(const fs::path& path, const std::vector<TimedPosition>& trajectory,
+                   Estimate& estimate) {
+  std::ifstream file(path);
+  if (!file) {
+    throw std::runtime_error(path.string() + ": cannot open");
+  }
+  std::string line;
+  std::getline(file, line);  // the header
+  for (std::size_t row = 2; std::getline(file, line); ++row) {
+    std::istringstream fields(line);
+    TimedPosition solved;
+    TimedPosition matched;
+    double yaw_rad = 0.0;
+    char comma = 0;
+    if (!(fields >> solved.t_s >> comma >> solved.position_m.x() >> comma >>
+          solved.position_m.y() >> comma >> yaw_rad >> comma >> matched.position_m.x() >> comma >>
+          matched.position_m.y())) {
+      throw std::runtime_error(path.string() + ":" + std::to_string(row) + ": not a path row");
+    }
+    matched.t_s = solved.t_s;
+    solved.position_m.z() = height_at(trajectory, solved.t_s);
+    matched.position_m.z() = solved.position_m.z();
+    estimate.path.push_back(solved);
+    estimate.matched.push_back(matched);
+  }
+}
+
 Estimate read_estimate(const fs::path& folder) {
   Estimate estimate;
-  estimate.path = read_trajectory(folder / "trajectory.csv");
+  std::vector<TimedPosition> trajectory = read_trajectory(folder / "trajectory.csv");
+  if (fs::exists(folder / "path.csv") && !trajectory.empty()) {
+    estimate.path_file = "path.csv";
+    read_map_path(folder / "path.csv", trajectory, estimate);
+  } else {
+    estimate.path_file = "trajectory.csv";
+    estimate.path = std::move(trajectory);
+  }
   try {
     estimate.planes = planes_from_json(read_json(folder / "planes.json"));
   } catch (const std::invalid_argument& error) {
@@ -193,16 +254,23 @@ BuildingScore score_buildings(const Truth& truth, const Estimate& estimate,
   return score;
 }
 
-nlohmann::json score_json(const hal::sim::PathAlignment& path, const hal::sim::PlaneScore& planes,
-                          const BuildingScore& buildings) {
+nlohmann::json score_json(const std::string& path_file, const hal::sim::PathAlignment& path,
+                          const hal::sim::PathAlignment& matched,
+                          const hal::sim::PlaneScore& planes, const BuildingScore& buildings) {
   return {{"path",
-           {{"poses", path.pairs},
+           {{"file", path_file},
+            {"poses", path.pairs},
             {"rms_m", path.rms_m},
             {"median_m", path.median_m},
             {"max_m", path.max_m},
             {"alignment",
              {{"yaw_deg", path.yaw_rad / kRadiansPerDegree},
               {"shift_m", {path.shift_m.x(), path.shift_m.y(), path.shift_m.z()}}}}}},
+          {"matched_path",
+           {{"poses", matched.pairs},
+            {"rms_m", matched.rms_m},
+            {"median_m", matched.median_m},
+            {"max_m", matched.max_m}}},
           {"planes",
            {{"walls_found", planes.walls_found},
             {"walls", planes.walls_considered},
@@ -217,15 +285,23 @@ nlohmann::json score_json(const hal::sim::PathAlignment& path, const hal::sim::P
             {"mean_iou", buildings.mean_iou}}}};
 }
 
-void print_score(std::ostream& out, const hal::sim::PathAlignment& path,
+void print_score(std::ostream& out, const std::string& path_file,
+                 const hal::sim::PathAlignment& path, const hal::sim::PathAlignment& matched,
                  const hal::sim::PlaneScore& planes, const BuildingScore& buildings) {
   char line[240];
   std::snprintf(line, sizeof line,
-                "path: %zu poses; laid onto the truth by %.2f deg and (%.2f %.2f %.2f) m; after "
-                "it %.3f m RMS, median %.3f m, worst %.3f m\n",
-                path.pairs, path.yaw_rad / kRadiansPerDegree, path.shift_m.x(), path.shift_m.y(),
-                path.shift_m.z(), path.rms_m, path.median_m, path.max_m);
+                "path (%s): %zu poses; laid onto the truth by %.2f deg and (%.2f %.2f %.2f) m; "
+                "after it %.3f m RMS, median %.3f m, worst %.3f m\n",
+                path_file.c_str(), path.pairs, path.yaw_rad / kRadiansPerDegree, path.shift_m.x(),
+                path.shift_m.y(), path.shift_m.z(), path.rms_m, path.median_m, path.max_m);
   out << line;
+  if (matched.pairs > 0) {
+    std::snprintf(line, sizeof line,
+                  "matched path (the scan matcher's, laid on by itself): %.3f m RMS, median "
+                  "%.3f m, worst %.3f m\n",
+                  matched.rms_m, matched.median_m, matched.max_m);
+    out << line;
+  }
   std::snprintf(line, sizeof line,
                 "planes: walls found %zu of %zu, faces found %zu of %zu (3 deg, 0.15 m, faces "
                 "with 200 returns); wall, roof and ground planes real %zu of %zu; faces found "
@@ -250,8 +326,8 @@ int run_score(const ScoreOptions& options, std::ostream& out, std::ostream& err)
     const Estimate estimate = read_estimate(options.map);
     const hal::sim::PathAlignment path = hal::sim::align_path(estimate.path, truth.path);
     if (path.pairs == 0) {
-      err << "blockmap: score: " << options.map
-          << "/trajectory.csv has no pose within the truth's time span\n";
+      err << "blockmap: score: " << options.map << '/' << estimate.path_file
+          << " has no pose within the truth's time span\n";
       return kExitFailure;
     }
     std::vector<msg::PlanePatch> moved;
@@ -260,10 +336,13 @@ int run_score(const ScoreOptions& options, std::ostream& out, std::ostream& err)
     }
     const hal::sim::PlaneScore planes = hal::sim::score_planes(truth.faces, moved);
     const BuildingScore buildings = score_buildings(truth, estimate, path);
+    const hal::sim::PathAlignment matched =
+        estimate.matched.empty() ? hal::sim::PathAlignment{}
+                                 : hal::sim::align_path(estimate.matched, truth.path);
     if (options.json) {
-      out << score_json(path, planes, buildings).dump() << '\n';
+      out << score_json(estimate.path_file, path, matched, planes, buildings).dump() << '\n';
     } else {
-      print_score(out, path, planes, buildings);
+      print_score(out, estimate.path_file, path, matched, planes, buildings);
     }
     return kExitOk;
   } catch (const std::exception& error) {
@@ -281,7 +360,7 @@ Command add_score_command(CLI::App& app) {
       "Score a map made from a simulated run against the run's truth.json, after laying "
       "its path onto the true one (docs/formats.md, blockmap score)");
   sub->add_option("map", options->map,
-                  "what replay --out wrote: trajectory.csv, planes.json, "
+                  "what replay --out wrote: path.csv (or trajectory.csv), planes.json, "
                   "buildings.json")
       ->required()
       ->check(CLI::ExistingDirectory);

@@ -172,6 +172,25 @@ void MapOutputs::thin_path() {
   path_stride_ *= 2;
 }
 
+std::string MapOutputs::write_map_path(const localize::PathSmoother& path) const {
+  if (!files_ || path.keyframe_count() == 0) {
+    return {};
+  }
+  std::ofstream file(dir_ / "path.csv");
+  file << "t_s,x_m,y_m,yaw_rad,matched_x_m,matched_y_m,matched_yaw_rad\n";
+  for (std::size_t i = 0; i < path.keyframe_count(); ++i) {
+    const localize::Pose2 solved = path.pose(i);
+    const localize::Pose2& matched = path.odometry(i);
+    char line[160];
+    const int n = std::snprintf(line, sizeof line, "%.6f,%.4f,%.4f,%.6f,%.4f,%.4f,%.6f\n",
+                                seconds_from_ns(solved.stamp_ns), solved.x_m, solved.y_m,
+                                solved.yaw_rad, matched.x_m, matched.y_m, matched.yaw_rad);
+    file.write(line, n);
+  }
+  file.flush();
+  return file ? std::string() : "writing " + (dir_ / "path.csv").string() + " failed (disk full?)";
+}
+
 std::string MapOutputs::finish(std::span<const msg::PlanePatch> planes,
                                std::span<const buildings::Building> buildings,
                                const std::optional<hal::GeodeticPoint>& origin,

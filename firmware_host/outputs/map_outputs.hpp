@@ -4,7 +4,8 @@
 //   planes.bin      the same updates as the binary plane stream (docs/log-formats.md)
 //   trajectory.csv  the smoothed poses, as they leave the localizer's smoothing window
 //   buildings.jsonl the buildings whenever a refit changed them: {"t_s", "buildings": [...]}
-// and at the end: planes.json (the final plane list), buildings.json, map.wrl (VRML
+// and at the end: planes.json (the final plane list), path.csv (the path the planes were laid
+// with, when the mapper solved one), buildings.json, map.wrl (VRML
 // 2.0, buildings' walls seen dark and virtual light) and footprints.geojson (WGS-84, when the
 // local frame's place on Earth is known). With a UDP
 // destination, each binary record also goes out as one datagram.
@@ -22,6 +23,7 @@
 #include "blockmap/hal/geodesy.hpp"
 #include "blockmap/hal/linux/udp_sender.hpp"
 #include "blockmap/localize/localizer.hpp"
+#include "blockmap/localize/path_smoother.hpp"
 #include "blockmap/msg/plane_patch.hpp"
 
 namespace blockmap::cli {
@@ -51,6 +53,11 @@ class MapOutputs {
                                    const std::optional<hal::GeodeticPoint>& origin,
                                    std::uint64_t points, double seconds,
                                    std::span<const Eigen::Vector3f> cloud_m = {});
+
+  // path.csv: the rigid path's keyframes as solved at the end, each with the scan matcher's
+  // pose of its time (the local SLAM's path, before the fixes placed it). Nothing without
+  // keyframes. Empty when it worked, otherwise why not.
+  [[nodiscard]] std::string write_map_path(const localize::PathSmoother& path) const;
 
   [[nodiscard]] std::uint64_t updates() const noexcept { return updates_; }
   [[nodiscard]] std::uint64_t binary_bytes() const noexcept { return binary_bytes_; }

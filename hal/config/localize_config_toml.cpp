@@ -29,6 +29,7 @@ void read_scan_matching_table(TableReader& t, localize::ScanMatchConfig& c) {
   c.max_step_m = t.positive_or("max_step_m", c.max_step_m);
   c.max_step_rad = t.positive_or("max_step_rad", c.max_step_rad);
   c.anchor_time_s = t.non_negative_or("anchor_time_s", c.anchor_time_s);
+  c.yaw_rate_bias_time_s = t.non_negative_or("yaw_rate_bias_time_s", c.yaw_rate_bias_time_s);
   c.anchor_heading_lever_m = t.non_negative_or("anchor_heading_lever_m", c.anchor_heading_lever_m);
   c.prior_along_ratio = t.positive_or("prior_along_ratio", c.prior_along_ratio);
   c.prior_weight = t.positive_or("prior_weight", c.prior_weight);

@@ -28,6 +28,11 @@ void read_rigid_path_table(TableReader& t, pipeline::MapperConfig& c) {
   r.across_sigma_per_sqrt_m = t.positive_or("across_sigma_per_sqrt_m", r.across_sigma_per_sqrt_m);
   r.yaw_sigma_per_sqrt_m = t.positive_or("yaw_sigma_per_sqrt_m", r.yaw_sigma_per_sqrt_m);
   r.yaw_sigma_per_sqrt_s = t.positive_or("yaw_sigma_per_sqrt_s", r.yaw_sigma_per_sqrt_s);
+  // Across the way and in the turn, where the scans were matched.
+  r.matched_across_sigma_per_sqrt_m =
+      t.positive_or("matched_across_sigma_per_sqrt_m", r.matched_across_sigma_per_sqrt_m);
+  r.matched_yaw_sigma_per_sqrt_m =
+      t.positive_or("matched_yaw_sigma_per_sqrt_m", r.matched_yaw_sigma_per_sqrt_m);
   r.bias_sigma_m = t.positive_or("bias_sigma_m", r.bias_sigma_m);
   r.bias_time_s = t.positive_or("bias_time_s", r.bias_time_s);
   r.fix_sigma_m = t.positive_or("fix_sigma_m", r.fix_sigma_m);
@@ -105,7 +110,9 @@ pipeline::MapperConfig parse_mapper_config(std::string_view text, std::string_vi
   if (auto table = root.table("rigid_path")) {
     read_rigid_path_table(*table, c);
   }
+  bool anchor_set = false;
   if (auto table = root.table("scan_matching")) {
+    anchor_set = table->has("anchor_time_s");
     read_scan_matching_table(*table, c.scan_matching);
   }
   if (auto table = root.table("registry")) {
@@ -113,6 +120,11 @@ pipeline::MapperConfig parse_mapper_config(std::string_view text, std::string_vi
   }
   if (auto table = root.table("mapper")) {
     read_mapper_table(*table, c);
+  }
+  if (anchor_set && pipeline::solves_the_path(c)) {
+    throw ConfigError(std::string(source) +
+                      ": scan_matching.anchor_time_s: the rigid path places the matcher's frame; "
+                      "the anchor is for a mapper without it ([rigid_path] enabled = false)");
   }
   if (c.planes.max_blocks > c.window.max_samples) {
     throw ConfigError(std::string(source) +

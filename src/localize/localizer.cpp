@@ -225,10 +225,14 @@ void Localizer::advance_map_pose(const BaseMotion& motion) noexcept {
   map_pose_.x_m += travel_m * std::cos(heading_rad);
   map_pose_.y_m += travel_m * std::sin(heading_rad);
   map_pose_.yaw_rad = wrap_angle(map_pose_.yaw_rad + turn_rad);
-  const double odometry_heading_rad = odometry_pose_.yaw_rad + 0.5 * turn_rad;
-  odometry_pose_.x_m += travel_m * std::cos(odometry_heading_rad);
-  odometry_pose_.y_m += travel_m * std::sin(odometry_heading_rad);
-  odometry_pose_.yaw_rad = wrap_angle(odometry_pose_.yaw_rad + turn_rad);
+  // The odometry's own pose: the wheels and the gyroscope as they report, uncalibrated (the
+  // scan matcher learns its own gyroscope bias; the filter's, learnt from fixes, lags by
+  // minutes and would bend the matched path while it settles).
+  const double raw_turn_rad = motion.yaw_rate_radps * dt_s;
+  const double odometry_heading_rad = odometry_pose_.yaw_rad + 0.5 * raw_turn_rad;
+  odometry_pose_.x_m += motion.distance_m * std::cos(odometry_heading_rad);
+  odometry_pose_.y_m += motion.distance_m * std::sin(odometry_heading_rad);
+  odometry_pose_.yaw_rad = wrap_angle(odometry_pose_.yaw_rad + raw_turn_rad);
   // The share of the correction due in dt (an exponential approach to the estimate).
   const double smoothing_s = carrier_phase_holds(motion.stamp_ns) ? config_.rtk_map_pose_smoothing_s
                                                                   : config_.map_pose_smoothing_s;

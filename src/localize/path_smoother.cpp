@@ -63,7 +63,8 @@ std::string validate(const PathSmootherConfig& config) {
   }
   if (!positive(config.keyframe_spacing_m) || !positive(config.along_sigma_per_sqrt_m) ||
       !positive(config.across_sigma_per_sqrt_m) || !positive(config.yaw_sigma_per_sqrt_m) ||
-      !positive(config.yaw_sigma_per_sqrt_s)) {
+      !positive(config.yaw_sigma_per_sqrt_s) || !positive(config.matched_across_sigma_per_sqrt_m) ||
+      !positive(config.matched_yaw_sigma_per_sqrt_m)) {
     return "path smoother: keyframe_spacing_m and the motion's sigmas must be positive";
   }
   if (!positive(config.bias_sigma_m) || !positive(config.bias_time_s) ||
@@ -167,6 +168,10 @@ void PathSmoother::append(const Pose2& odometry, const Pose2& drawn) noexcept {
   next = Keyframe{};
   next.odometry = odometry;
   next.drawn = drawn;
+  next.dead_reckoned_m = dead_reckoned_m_;
+  next.dead_reckoned_s = dead_reckoned_s_;
+  dead_reckoned_m_ = 0.0;
+  dead_reckoned_s_ = 0.0;
   if (count_ == 0) {
     // Where the caller drew it: the odometry's frame says nothing about the local frame.
     next.state[kX] = drawn.x_m;
@@ -202,6 +207,8 @@ void PathSmoother::thin() noexcept {
     }
     Keyframe& into = keyframes_[kept - 1];
     const Keyframe& from = keyframes_[i];
+    keyframes_[i + 1].dead_reckoned_m += from.dead_reckoned_m;  // now from `into` on
+    keyframes_[i + 1].dead_reckoned_s += from.dead_reckoned_s;
     const double dx_m = from.state[kX] - into.state[kX];
     const double dy_m = from.state[kY] - into.state[kY];
     for (const auto member : {&Keyframe::code_fixes, &Keyframe::carrier_fixes}) {
@@ -227,14 +234,20 @@ void PathSmoother::accumulate_motion(std::size_t i) noexcept {
   const double dy = b.state[kY] - a.state[kY];
   const Eigen::Vector3d residual(c * dx + s * dy - measured.x(), -s * dx + c * dy - measured.y(),
                                  wrap_angle(b.state[kYaw] - a.state[kYaw] - measured.z()));
+  // Across the way and in the turn, the matched part of the motion is weighed as matched.
+  const double alone_m = std::min(distance_m, b.dead_reckoned_m);
+  const double matched_m = distance_m - alone_m;
+  // The turn's per-second noise (a gyroscope bias) over the time the odometry carried alone:
+  // all of it when the caller never says (the filter's own odometry).
+  const double alone_s = noted_dead_reckoning_ ? std::min(dt_s, b.dead_reckoned_s) : dt_s;
+  const auto squared = [](double x) { return x * x; };
   const Eigen::Vector3d information(
-      1.0 / (config_.along_sigma_per_sqrt_m * config_.along_sigma_per_sqrt_m * distance_m +
-             kMinMotionVarianceM2),
-      1.0 / (config_.across_sigma_per_sqrt_m * config_.across_sigma_per_sqrt_m * distance_m +
-             kMinMotionVarianceM2),
-      1.0 / (config_.yaw_sigma_per_sqrt_m * config_.yaw_sigma_per_sqrt_m * distance_m +
-             config_.yaw_sigma_per_sqrt_s * config_.yaw_sigma_per_sqrt_s * dt_s +
-             kMinTurnVarianceRad2));
+      1.0 / (squared(config_.along_sigma_per_sqrt_m) * distance_m + kMinMotionVarianceM2),
+      1.0 / (squared(config_.across_sigma_per_sqrt_m) * alone_m +
+             squared(config_.matched_across_sigma_per_sqrt_m) * matched_m + kMinMotionVarianceM2),
+      1.0 / (squared(config_.yaw_sigma_per_sqrt_m) * alone_m +
+             squared(config_.matched_yaw_sigma_per_sqrt_m) * matched_m +
+             squared(config_.yaw_sigma_per_sqrt_s) * alone_s + kMinTurnVarianceRad2));
   Jacobian3 ja = Jacobian3::Zero();
   Jacobian3 jb = Jacobian3::Zero();
   ja(0, kX) = -c;

@@ -456,13 +456,20 @@ const PlanarCorrection& ScanMatcher::add_scan(const Pose2& raw_pose, const Pose2
       have_last_ ? std::max(0.0, seconds_from_ns(raw_pose.stamp_ns - last_stamp_ns_)) : 0.0;
   // 1. The prediction, in the matcher's own frame: the scan before's pose there, moved as the
   //    odometry moved since. The first scan sets that frame: where the filter put it.
-  const Pose2 predicted =
-      have_last_ ? moved_by(last_matched_, last_odometry_, odometry_pose) : raw_pose;
+  Pose2 predicted = raw_pose;
+  if (have_last_) {
+    predicted = moved_by(last_matched_, last_odometry_, odometry_pose);
+    predicted.yaw_rad = wrap_angle(predicted.yaw_rad - yaw_rate_bias_radps_ * since_last_s);
+  }
+  const bool was_tracking = tracking_;
   have_last_ = true;
   last_stamp_ns_ = raw_pose.stamp_ns;
   last_odometry_ = odometry_pose;
   const Eigen::Vector3d pose = matched_pose(predicted, raw_pose, robot_z_m, points_m);
   last_matched_ = {raw_pose.stamp_ns, pose.x(), pose.y(), wrap_angle(pose.z())};
+  if (was_tracking && tracking_) {
+    learn_yaw_rate_bias(wrap_angle(pose.z() - predicted.yaw_rad));
+  }
   // 4. The scan's points into the grid, where the matched pose puts them, once the robot
   //    has moved on from the last scan that went in.
   to_grid_ = motion_between(raw_pose, last_matched_);
@@ -482,10 +489,19 @@ const PlanarCorrection& ScanMatcher::add_scan(const Pose2& raw_pose, const Pose2
   return correction_;
 }
 
+void ScanMatcher::learn_yaw_rate_bias(double turn_from_prediction_rad) noexcept {
+  // A prediction that turns too far by b dt each scan is matched back by about that much:
+  // the bias estimate moves by the match's turn over the controller's time.
+  if (config_.yaw_rate_bias_time_s > 0.0) {
+    yaw_rate_bias_radps_ -= turn_from_prediction_rad / config_.yaw_rate_bias_time_s;
+  }
+}
 Eigen::Vector3d ScanMatcher::matched_pose(const Pose2& predicted, const Pose2& raw_pose,
                                           double robot_z_m,
                                           std::span<const Eigen::Vector3f> points_m) noexcept {
   const bool had_map = placed_;
+  const bool was_tracking = tracking_;
+  tracking_ = false;  // until this scan is matched
   recentre(Eigen::Vector2d(predicted.x_m, predicted.y_m));
   Eigen::Vector3d prior(predicted.x_m, predicted.y_m, predicted.yaw_rad);
   scan_count_ = select_points(raw_pose, robot_z_m, points_m);
@@ -502,8 +518,7 @@ Eigen::Vector3d ScanMatcher::matched_pose(const Pose2& predicted, const Pose2& r
   //    levels are enough; after a refusal (or a start) every level looks.
   Eigen::Vector3d pose = prior;
   const std::size_t from_level =
-      tracking_ ? std::min<std::size_t>(2, levels_.size()) : levels_.size();
-  tracking_ = false;
+      was_tracking ? std::min<std::size_t>(2, levels_.size()) : levels_.size();
   for (std::size_t l = from_level; l-- > 0;) {
     refine(levels_[l], prior, pose);
   }

@@ -64,10 +64,23 @@ planes::PlanesConfig detector_config(const MapperConfig& config) noexcept {
 // survey's, the simulation's) are what the map should be drawn with, and the smoothed path of
 // a pose lag already has the headings that matching gives the live poses (docs/localize.md,
 // Scan matching).
+namespace {
+
+bool scans_matched(const MapperConfig& config) noexcept {
+  return config.scan_matching.enabled && config.pose_source == PoseSource::kLocalizer &&
+         !(config.localizer.map_pose_lag_s > 0.0);
+}
+
+}  // namespace
+
 localize::ScanMatchConfig matcher_config(const MapperConfig& config) noexcept {
   localize::ScanMatchConfig matching = config.scan_matching;
-  matching.enabled = matching.enabled && config.pose_source == PoseSource::kLocalizer &&
-                     !(config.localizer.map_pose_lag_s > 0.0);
+  matching.enabled = scans_matched(config);
+  // The rigid path places the matcher's frame: laid onto the filter's path as the run goes,
+  // the frame would turn while a wall is seen, and bend it.
+  if (solves_the_path(config)) {
+    matching.anchor_time_s = 0.0;
+  }
   return matching;
 }
 
@@ -84,7 +97,7 @@ map::PlaneRegistryConfig registry_config(const MapperConfig& config) noexcept {
 // moved off it would no longer be the outline traced in it.
 bool solves_the_path(const MapperConfig& config) noexcept {
   return config.rigid_path == RigidPath::kOn ||
-         (config.rigid_path == RigidPath::kWhereScansAreMatched && matcher_config(config).enabled &&
+         (config.rigid_path == RigidPath::kWhereScansAreMatched && scans_matched(config) &&
           config.free_space.tiles_across == 0);
 }
 

@@ -58,7 +58,8 @@ void RigidPathSolver::add_fix(const localize::GpsObservation& robot_fix) noexcep
 
 void RigidPathSolver::add_matched_scan(TimestampNs stamp_ns, const localize::Pose2& matched,
                                        const localize::Pose2& drawn,
-                                       const localize::Pose2& odometry) noexcept {
+                                       const localize::Pose2& odometry,
+                                       bool scan_matched) noexcept {
   if (rebase_due_ && have_last_) {
     // Where the dead reckoning carries the last pose (the rigid motion that lays the last
     // odometry pose on the last path pose, applied to this one): the new frame's first pose
@@ -70,6 +71,13 @@ void RigidPathSolver::add_matched_scan(TimestampNs stamp_ns, const localize::Pos
   rebase_due_ = false;
   localize::Pose2 in_path = rebase_.apply(matched);
   in_path.stamp_ns = stamp_ns;
+  if (have_last_) {
+    // Noted for every scan, so that the path knows its odometry is matched scans.
+    const bool alone = !scan_matched;
+    path_.note_dead_reckoning(
+        alone ? std::hypot(in_path.x_m - last_pose_.x_m, in_path.y_m - last_pose_.y_m) : 0.0,
+        alone ? seconds_from_ns(stamp_ns - last_pose_.stamp_ns) : 0.0);
+  }
   have_last_ = true;
   last_pose_ = in_path;
   last_odometry_ = odometry;

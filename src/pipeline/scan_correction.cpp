@@ -44,7 +44,8 @@ ScanCorrection::Outcome ScanCorrection::correct(std::size_t laser,
     const localize::Pose2 raw{first.stamp_ns, first.x_m, first.y_m, first.yaw_rad};
     correction = matcher_.add_scan(raw, odometry, first.z_m, points_m);
     if (path != nullptr) {
-      path->add_matched_scan(first.stamp_ns, matcher_.matched(), correction.apply(raw), odometry);
+      path->add_matched_scan(first.stamp_ns, matcher_.matched(), correction.apply(raw), odometry,
+                             matcher_.last_scan_matched());
     }
     corrections_.push_overwrite({first.stamp_ns, correction});
   } else {

@@ -47,10 +47,14 @@ TEST_F(ScoreCommand, ScoresAReplaysMapAfterLayingItsPathOntoTheTruth) {
   const testing::CliResult result = run_cli({"score", map_.string(), logs_.string(), "--json"});
   ASSERT_EQ(result.status, kExitOk) << result.err;
   const nlohmann::json score = nlohmann::json::parse(result.out);
-  // A pose every 0.25 s once the filter has a fix; laid onto the truth, the path is within the
-  // receiver's 2 m everywhere, and its worst is no better than its median.
+  // The path the planes were laid with: the rigid path's keyframes, one per fix (4 Hz); laid
+  // onto the truth it keeps the true shape to decimetres, and its worst is no better than its
+  // median. The scan matcher's own path is scored beside it.
+  EXPECT_EQ(score["path"]["file"], "path.csv");
   EXPECT_GT(score["path"]["poses"].get<int>(), 150);
-  EXPECT_LT(score["path"]["rms_m"].get<double>(), 2.0);
+  EXPECT_LT(score["path"]["rms_m"].get<double>(), 0.5);
+  EXPECT_EQ(score["matched_path"]["poses"], score["path"]["poses"]);
+  EXPECT_LT(score["matched_path"]["rms_m"].get<double>(), 1.0);
   EXPECT_GE(score["path"]["max_m"].get<double>(), score["path"]["median_m"].get<double>());
   EXPECT_LT(std::abs(score["path"]["alignment"]["yaw_deg"].get<double>()), 10.0);
   // The first minute sees the ground and the first walls.
@@ -63,9 +67,27 @@ TEST_F(ScoreCommand, ScoresAReplaysMapAfterLayingItsPathOntoTheTruth) {
   const testing::CliResult lines =
       run_cli({"score", map_.string(), (logs_ / "truth.json").string()});
   ASSERT_EQ(lines.status, kExitOk) << lines.err;
-  EXPECT_NE(lines.out.find("path: "), std::string::npos);
+  EXPECT_NE(lines.out.find("path (path.csv): "), std::string::npos);
+  EXPECT_NE(lines.out.find("matched path (the scan matcher's"), std::string::npos);
   EXPECT_NE(lines.out.find("planes: walls found "), std::string::npos);
   EXPECT_NE(lines.out.find("buildings: mean footprint IoU "), std::string::npos);
+}
+
+TEST_F(ScoreCommand, AMapWithoutASolvedPathIsScoredOnItsTrajectory) {
+  // A map made without the rigid path (or before path.csv) has only the smoothed poses.
+  const fs::path map = scratch("score_trajectory_only");
+  fs::remove_all(map);
+  fs::create_directories(map);
+  for (const char* name : {"trajectory.csv", "planes.json", "buildings.json"}) {
+    fs::copy_file(map_ / name, map / name);
+  }
+  const testing::CliResult result = run_cli({"score", map.string(), logs_.string(), "--json"});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  const nlohmann::json score = nlohmann::json::parse(result.out);
+  EXPECT_EQ(score["path"]["file"], "trajectory.csv");
+  EXPECT_GT(score["path"]["poses"].get<int>(), 150);
+  EXPECT_LT(score["path"]["rms_m"].get<double>(), 2.0);
+  EXPECT_EQ(score["matched_path"]["poses"].get<int>(), 0);
 }
 
 TEST_F(ScoreCommand, AMissingOrDamagedFileIsOneLineAndAFailure) {

@@ -432,6 +432,57 @@ TEST(PathSmootherTies, AFullSetGivesUpTheMostAlikeTie) {
   EXPECT_EQ(smoother.tie_count(), 3u);
 }
 
+// A straight 200 m drive east, a keyframe and a true fix every metre, whose odometry turns
+// 3 degrees too far at 100 m. The worst heading of the solved path more than 5 m from there.
+double heading_off_past_a_kink_rad(bool note_the_kink) {
+  PathSmootherConfig config;
+  config.matched_yaw_sigma_per_sqrt_m = 0.0005;  // a scan matcher's turn
+  config.yaw_sigma_per_sqrt_m = 0.05;            // the odometry's alone
+  Arena arena(PathSmoother::arena_bytes(config));
+  PathSmoother smoother;
+  smoother.init(arena, config);
+  arena.seal();
+  const double kink_rad = 3.0 * synthetic::kPi / 180.0;
+  for (int metre = 0; metre <= 200; ++metre) {
+    const double x_m = metre;
+    Pose2 odometry{static_cast<TimestampNs>(metre) * kNanosecondsPerSecond, x_m, 0.0, 0.0};
+    if (metre > 100) {
+      odometry.x_m = 100.0 + (x_m - 100.0) * std::cos(kink_rad);
+      odometry.y_m = (x_m - 100.0) * std::sin(kink_rad);
+      odometry.yaw_rad = kink_rad;
+    }
+    if (note_the_kink && metre > 98 && metre <= 102) {
+      smoother.note_dead_reckoning(1.0, 1.0);  // no scan matched over these metres
+    } else {
+      smoother.note_dead_reckoning(0.0, 0.0);  // matched
+    }
+    smoother.add(odometry, Eigen::Vector2d(x_m, 0.0));
+  }
+  for (int i = 0; i < 4; ++i) {
+    smoother.solve();
+  }
+  double worst_rad = 0.0;
+  for (std::size_t k = 0; k < smoother.keyframe_count(); ++k) {
+    const Pose2 pose = smoother.pose(k);
+    if (std::abs(pose.x_m - 100.0) > 5.0) {
+      worst_rad = std::max(worst_rad, std::abs(std::remainder(pose.yaw_rad, 2.0 * synthetic::kPi)));
+    }
+  }
+  return worst_rad;
+}
+
+TEST(PathSmoother, TheOdometrysOwnStretchesTakeItsTurnErrors) {
+  // Told which metres the odometry carried alone, the solved path turns there and stays
+  // straight on either side; told nothing, every metre is a matched one and the 3 degrees
+  // spread over the drive.
+  const double told = heading_off_past_a_kink_rad(true);
+  const double untold = heading_off_past_a_kink_rad(false);
+  std::printf("heading off away from the kink: %.2f deg told, %.2f deg untold\n",
+              told * 180.0 / synthetic::kPi, untold * 180.0 / synthetic::kPi);
+  EXPECT_LT(told, 0.3 * synthetic::kPi / 180.0);
+  EXPECT_GT(untold, 3.0 * told);
+}
+
 TEST(PathSmoother, BadConfigurationsAreNamed) {
   PathSmootherConfig config;
   EXPECT_EQ(validate(config), "");
@@ -442,6 +493,9 @@ TEST(PathSmoother, BadConfigurationsAreNamed) {
   EXPECT_NE(validate(config).find("bias_time_s"), std::string::npos);
   config = {};
   config.across_sigma_per_sqrt_m = std::nan("");
+  EXPECT_NE(validate(config).find("sigmas"), std::string::npos);
+  config = {};
+  config.matched_yaw_sigma_per_sqrt_m = 0.0;
   EXPECT_NE(validate(config).find("sigmas"), std::string::npos);
   config = {};
   config.iterations = 0;

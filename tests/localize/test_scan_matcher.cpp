@@ -179,6 +179,51 @@ TEST(ScanMatcher, MatchedPosesFollowTheStreetWhereTheOdometryDrifts) {
   EXPECT_EQ(matcher.counters().too_far, 0u);
 }
 
+// The heading error after 30 s of street matched and 10 s with no scan to match (an open
+// square): the odometry's turn alone carries the pose through, with the bias the matcher
+// learnt (bias_time_s > 0) or as it comes (0).
+double heading_after_an_outage_rad(double bias_time_s, double& learnt_radps) {
+  const std::vector<Segment> scene = street();
+  ScanMatchConfig config = street_config();
+  config.yaw_rate_bias_time_s = bias_time_s;
+  Arena arena(ScanMatcher::arena_bytes(config));
+  ScanMatcher matcher;
+  matcher.init(arena, config);
+  arena.seal();
+  constexpr int kMatchedScans = 75 * 30;
+  constexpr int kScans = 75 * 40;
+  Pose2 corrected;
+  for (int scan = 0; scan < kScans; ++scan) {
+    const Pose2 odometry = odometry_at(scan);
+    const std::vector<Eigen::Vector3f> points =
+        scan < kMatchedScans ? scan_drawn_at(scene, truth_at(scan), odometry, 0.8)
+                             : std::vector<Eigen::Vector3f>{};
+    corrected = matcher.add_scan(odometry, odometry, 0.0, points).apply(odometry);
+  }
+  learnt_radps = matcher.yaw_rate_bias_radps();
+  return std::abs(
+      std::remainder(corrected.yaw_rad - truth_at(kScans - 1).yaw_rad, 2.0 * std::numbers::pi));
+}
+
+TEST(ScanMatcher, LearnsTheGyroscopeBiasFromItsMatches) {
+  BLOCKMAP_LONG_TEST();
+  // The odometry turns 0.4 deg/s too much. Matched, each scan's turn from its prediction says
+  // so; the bias learnt carries the heading through the outage, where the odometry's turn as
+  // it comes is 4 deg off.
+  double learnt_radps = 0.0;
+  const double learning = heading_after_an_outage_rad(20.0, learnt_radps);
+  EXPECT_NEAR(learnt_radps, 0.4 * kDegree, 0.1 * kDegree);
+  EXPECT_LT(learning, 1.0 * kDegree);
+  double unused_radps = 0.0;
+  const double as_it_comes = heading_after_an_outage_rad(0.0, unused_radps);
+  EXPECT_EQ(unused_radps, 0.0);
+  EXPECT_GT(as_it_comes, 3.5 * kDegree);
+  std::printf(
+      "heading after 10 s without scans: %.2f deg with the bias learnt (%.3f deg/s), "
+      "%.2f deg without\n",
+      learning / kDegree, learnt_radps / kDegree, as_it_comes / kDegree);
+}
+
 TEST(ScanMatcher, TheAnchorLaysTheMatchedPathOntoTheFiltersPath) {
   // The first scan's pose is 8 deg and 1 m off (the filter before its heading settles), the
   // filter's poses after it are right: the matcher's frame keeps the first scan's error, and

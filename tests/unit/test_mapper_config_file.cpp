@@ -89,6 +89,23 @@ TEST(MapperConfigFile, WhatTheMapperDerivesIsRefusedNamingTheKey) {
             "them)");
 }
 
+TEST(MapperConfigFile, TheRigidPathPlacesTheMatchersFrame) {
+  // With the rigid path (the paper's robot's default) the matcher's frame is not laid onto
+  // the filter's path as the run goes: a key that asks for it is refused, naming it.
+  const pipeline::MapperConfig c = parse_mapper_config("", "map.toml", papers_robot());
+  ASSERT_TRUE(pipeline::solves_the_path(c));
+  EXPECT_EQ(pipeline::matcher_config(c).anchor_time_s, 0.0);
+  EXPECT_NE(error_of("[scan_matching]\nanchor_time_s = 60.0\n", papers_robot())
+                .find("map.toml: scan_matching.anchor_time_s: the rigid path places"),
+            std::string::npos);
+  // Without the rigid path the anchor is the matcher's own, and the key is honoured.
+  const pipeline::MapperConfig anchored =
+      parse_mapper_config("[rigid_path]\nenabled = false\n[scan_matching]\nanchor_time_s = 60.0\n",
+                          "map.toml", papers_robot());
+  EXPECT_FALSE(pipeline::solves_the_path(anchored));
+  EXPECT_EQ(pipeline::matcher_config(anchored).anchor_time_s, 60.0);
+}
+
 TEST(MapperConfigFile, ALevelOnlyRobotCannotTurnWallsFromLinesOff) {
   EXPECT_NE(error_of("[planes]\nwalls_from_lines = false\n", level_laser_robot())
                 .find("planes.walls_from_lines"),

@@ -60,6 +60,13 @@ struct PathSmootherConfig {
   double across_sigma_per_sqrt_m = 0.01;
   double yaw_sigma_per_sqrt_m = 0.002;
   double yaw_sigma_per_sqrt_s = 0.001;
+  // The same across the way and in the turn for the motion scans were matched over (all of
+  // it unless the caller says how much the odometry carried alone: note_dead_reckoning()).
+  // A scan matcher holds those to its map far tighter than dead reckoning does, and its turn
+  // has no gyroscope bias (yaw_sigma_per_sqrt_s counts the dead-reckoned time only, once the
+  // caller notes any).
+  double matched_across_sigma_per_sqrt_m = 0.01;
+  double matched_yaw_sigma_per_sqrt_m = 0.002;
   // The receiver: the slow part of its error per axis and how long it lasts, and the fast
   // part per fix (multipath and noise) for a fix of sigma 1 (add()'s fix_sigma_scale).
   double bias_sigma_m = 1.2;
@@ -133,6 +140,15 @@ class PathSmoother {
   void add(const Pose2& odometry, const Pose2& drawn, const std::optional<Eigen::Vector2d>& fix_m,
            double fix_sigma_scale = 1.0, GpsCorrection correction = GpsCorrection::kNone) noexcept;
 
+  // Of the motion from the last keyframe to the next one, this much (and this long) the
+  // odometry carried alone (no scan was matched over it): it is weighed with the odometry's
+  // sigmas, the rest with the matched ones, and only its time with the turn's per second.
+  void note_dead_reckoning(double distance_m, double duration_s) noexcept {
+    noted_dead_reckoning_ = true;
+    dead_reckoned_m_ += distance_m;
+    dead_reckoned_s_ += duration_s;
+  }
+
   // The wall `key` (the caller's name for it) that `earlier` saw is the wall `later` sees,
   // on another pass. A tie of the same key whose later look is of this pass (less than
   // kSamePassNs before this one) takes this look instead: the wall grows as the robot passes.
@@ -173,11 +189,13 @@ class PathSmoother {
     void merge(double east, double north, double more_weight) noexcept;
   };
   struct Keyframe {
-    Pose2 odometry;         // as given
-    Pose2 drawn;            // as given
-    FixMean code_fixes;     // position + slow error = fix
-    FixMean carrier_fixes;  // position = fix (RTK)
-    double state[5] = {};   // x, y, yaw, bx, by as solved
+    Pose2 odometry;                // as given
+    Pose2 drawn;                   // as given
+    FixMean code_fixes;            // position + slow error = fix
+    FixMean carrier_fixes;         // position = fix (RTK)
+    double state[5] = {};          // x, y, yaw, bx, by as solved
+    double dead_reckoned_m = 0.0;  // of the motion from the keyframe before: odometry alone
+    double dead_reckoned_s = 0.0;
   };
   // The normal equations' blocks at keyframe i: the diagonal, the one coupling it to i + 1,
   // and the gradient; the band's factors overwrite the first two (L with S = L L', and
@@ -241,6 +259,9 @@ class PathSmoother {
   std::span<Tie> ties_;
   std::size_t count_ = 0;
   std::size_t tie_count_ = 0;
+  double dead_reckoned_m_ = 0.0;  // noted since the last keyframe
+  double dead_reckoned_s_ = 0.0;
+  bool noted_dead_reckoning_ = false;  // the caller tells matched motion from odometry's
   PathSmootherCounters counters_;
 };
 

@@ -82,7 +82,7 @@ struct ScanMatchConfig {
   double normal_neighbour_m = 2.0;
   double map_update_rad = 0.035;
   std::uint32_t max_points = 512;
-  std::uint32_t min_points = 10;
+  std::uint32_t min_points = 30;
   // A match counts when at least this share of its points lies on the map, and moves the
   // pose from the prediction by no more than these.
   double min_overlap = 0.3;
@@ -94,6 +94,10 @@ struct ScanMatchConfig {
   // much as a pair of positions anchor_heading_lever_m apart.
   double anchor_time_s = 120.0;
   double anchor_heading_lever_m = 5.0;
+  // The odometry's gyroscope bias, learnt from the matches: each matched scan's turn away from
+  // its prediction moves the estimate by itself over this time (an integral controller; 0:
+  // the odometry's turn is taken as it comes).
+  double yaw_rate_bias_time_s = 20.0;
   // The prior at the prediction, per point and per unit of the data's own weight: small
   // against what a seen surface says, large enough to hold what nothing says.
   double prior_weight = 0.05;
@@ -158,9 +162,13 @@ class ScanMatcher {
   [[nodiscard]] const PlanarCorrection& correction() const noexcept { return correction_; }
   // The last scan's pose in the matcher's own frame (the grid's).
   [[nodiscard]] const Pose2& matched() const noexcept { return last_matched_; }
+  // Whether the last scan was matched (or its prediction stood: refused, too few points).
+  [[nodiscard]] bool last_scan_matched() const noexcept { return tracking_; }
   // The last scan's points that took part in its match.
   [[nodiscard]] std::size_t points_used() const noexcept { return scan_count_; }
   [[nodiscard]] const ScanMatchCounters& counters() const noexcept { return counters_; }
+  // The gyroscope bias the matches say the odometry's turn has (rad/s).
+  [[nodiscard]] double yaw_rate_bias_radps() const noexcept { return yaw_rate_bias_radps_; }
   [[nodiscard]] std::size_t memory_bytes() const noexcept;
   // The finest level's hit count at a point (0 outside the grid): for tests.
   [[nodiscard]] std::uint8_t hits_at(const Eigen::Vector2d& point_m) const noexcept;
@@ -199,6 +207,8 @@ class ScanMatcher {
   [[nodiscard]] Eigen::Vector3d matched_pose(const Pose2& predicted, const Pose2& raw_pose,
                                              double robot_z_m,
                                              std::span<const Eigen::Vector3f> points_m) noexcept;
+  // After a match that followed a match: the turn it took from the prediction.
+  void learn_yaw_rate_bias(double turn_from_prediction_rad) noexcept;
   [[nodiscard]] std::size_t select_points(const Pose2& raw_pose, double robot_z_m,
                                           std::span<const Eigen::Vector3f> points_m) noexcept;
   void recentre(const Eigen::Vector2d& robot_m) noexcept;
@@ -226,7 +236,8 @@ class ScanMatcher {
   Pose2 last_update_;      // the pose, in the matcher's frame, of the last scan that went in
   Pose2 last_matched_;     // the scan before's pose in the matcher's frame, and its odometry
   Pose2 last_odometry_;
-  PlanarCorrection to_grid_;  // the filter's frame to the matcher's, at the last scan
+  double yaw_rate_bias_radps_ = 0.0;  // kept across resets: the gyroscope's, not the grid's
+  PlanarCorrection to_grid_;          // the filter's frame to the matcher's, at the last scan
   Anchor anchor_;
   PlanarCorrection correction_;  // the filter's frame to the local frame: anchor after to_grid
   ScanMatchCounters counters_;

@@ -68,6 +68,8 @@ enum class RigidPath : std::uint8_t {
 [[nodiscard]] inline localize::PathSmootherConfig path_for_matched_scans() noexcept {
   localize::PathSmootherConfig config;
   config.yaw_sigma_per_sqrt_m = 0.004;
+  config.matched_yaw_sigma_per_sqrt_m = 0.001;
+  config.matched_across_sigma_per_sqrt_m = 0.005;
   return config;
 }
 

@@ -36,10 +36,12 @@ class RigidPathSolver final : public map::PlaneView {
   // The scan matcher's frame starts over (its grid was reset): the next matched pose is laid
   // where the dead reckoning carries the last one.
   void rebase() noexcept { rebase_due_ = true; }
-  // A matched scan: `matched` in the matcher's frame, `drawn` where it was drawn, `odometry`
-  // the dead-reckoned pose at its time. Solves again every 10 s of scan time.
+  // A level scan: `matched` in the matcher's frame, `drawn` where it was drawn, `odometry`
+  // the dead-reckoned pose at its time; `scan_matched` false when the prediction stood (the
+  // motion to it is the odometry's alone). Solves again every 10 s of scan time.
   void add_matched_scan(TimestampNs stamp_ns, const localize::Pose2& matched,
-                        const localize::Pose2& drawn, const localize::Pose2& odometry) noexcept;
+                        const localize::Pose2& drawn, const localize::Pose2& odometry,
+                        bool scan_matched) noexcept;
   // Whether a solve came since the last call (the view is due for a refresh).
   [[nodiscard]] bool take_solved() noexcept;
   // The end: the whole run's path once more (before the last planes are finalized, so that
