@@ -234,11 +234,12 @@ void PathSmoother::accumulate_motion(std::size_t i) noexcept {
   const double dy = b.state[kY] - a.state[kY];
   const Eigen::Vector3d residual(c * dx + s * dy - measured.x(), -s * dx + c * dy - measured.y(),
                                  wrap_angle(b.state[kYaw] - a.state[kYaw] - measured.z()));
-  // Across the way and in the turn, the matched part of the motion is weighed as matched.
-  const double alone_m = std::min(distance_m, b.dead_reckoned_m);
+  // Across the way and in the turn, the matched part of the motion is weighed as matched,
+  // and the turn's per-second noise (a gyroscope bias) counts over the time the odometry
+  // carried alone: all of the motion is the odometry's when the caller never says.
+  const double alone_m =
+      noted_dead_reckoning_ ? std::min(distance_m, b.dead_reckoned_m) : distance_m;
   const double matched_m = distance_m - alone_m;
-  // The turn's per-second noise (a gyroscope bias) over the time the odometry carried alone:
-  // all of it when the caller never says (the filter's own odometry).
   const double alone_s = noted_dead_reckoning_ ? std::min(dt_s, b.dead_reckoned_s) : dt_s;
   const auto squared = [](double x) { return x * x; };
   const Eigen::Vector3d information(

@@ -84,6 +84,9 @@ std::string validate(const ScanMatchConfig& config) {
     return "scan_matching: anchor_time_s and anchor_heading_lever_m must not be negative, "
            "prior_weight positive";
   }
+  if (!(config.yaw_rate_bias_time_s >= 0.0)) {
+    return "scan_matching: yaw_rate_bias_time_s must not be negative";
+  }
   return {};
 }
 

@@ -33,7 +33,8 @@ ScanCorrection::Outcome ScanCorrection::correct(std::size_t laser,
     // matched scan: the grid drawn with the poses before is of another frame. By the snap's
     // stamp, not by when the localizer made it: it runs ahead of the scans by however the
     // messages came.
-    if (paused_ || localizer.map_pose_snapped_between(last_matched_scan_ns_, first.stamp_ns)) {
+    if (paused_ || (matcher_.anchored() &&
+                    localizer.map_pose_snapped_between(last_matched_scan_ns_, first.stamp_ns))) {
       paused_ = false;
       matcher_.reset();
       if (path != nullptr) {

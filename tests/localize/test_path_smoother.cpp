@@ -454,7 +454,7 @@ double heading_off_past_a_kink_rad(bool note_the_kink) {
     if (note_the_kink && metre > 98 && metre <= 102) {
       smoother.note_dead_reckoning(1.0, 1.0);  // no scan matched over these metres
     } else {
-      smoother.note_dead_reckoning(0.0, 0.0);  // matched
+      smoother.note_dead_reckoning(0.0, 0.0);  // every scan matched
     }
     smoother.add(odometry, Eigen::Vector2d(x_m, 0.0));
   }
@@ -473,14 +473,14 @@ double heading_off_past_a_kink_rad(bool note_the_kink) {
 
 TEST(PathSmoother, TheOdometrysOwnStretchesTakeItsTurnErrors) {
   // Told which metres the odometry carried alone, the solved path turns there and stays
-  // straight on either side; told nothing, every metre is a matched one and the 3 degrees
-  // spread over the drive.
+  // straight on either side; told that every metre was matched, it spreads the 3 degrees
+  // over the drive.
   const double told = heading_off_past_a_kink_rad(true);
-  const double untold = heading_off_past_a_kink_rad(false);
-  std::printf("heading off away from the kink: %.2f deg told, %.2f deg untold\n",
-              told * 180.0 / synthetic::kPi, untold * 180.0 / synthetic::kPi);
+  const double all_matched = heading_off_past_a_kink_rad(false);
+  std::printf("heading off away from the kink: %.2f deg told, %.2f deg all matched\n",
+              told * 180.0 / synthetic::kPi, all_matched * 180.0 / synthetic::kPi);
   EXPECT_LT(told, 0.3 * synthetic::kPi / 180.0);
-  EXPECT_GT(untold, 3.0 * told);
+  EXPECT_GT(all_matched, 3.0 * told);
 }
 
 TEST(PathSmoother, BadConfigurationsAreNamed) {

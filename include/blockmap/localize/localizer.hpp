@@ -125,9 +125,10 @@ class Localizer {
   // The pose to draw a scan with: smooth from one base sample to the next (odometry between
   // fixes), near the filter's estimate over seconds, with the base's attitude of that sample.
   // False before the filter starts and outside the last map_pose_capacity base samples.
-  // `odometry`, when given, is the odometry's own pose at the stamp: the same dead reckoning
-  // from the filter's first estimate on, never drawn toward the filter (what the scans of a
-  // scan matcher move by between two matches).
+  // `odometry`, when given, is the odometry's own pose at the stamp: the wheels' distance and
+  // the gyroscope's turn as the base reports them, uncalibrated, from the filter's first
+  // estimate on, never drawn toward the filter (what the scans of a scan matcher move by
+  // between two matches; the matcher learns the gyroscope's bias itself).
   bool map_pose_at(TimestampNs stamp_ns, Pose3& out, Pose2* odometry = nullptr) const noexcept;
   // At the end of the input: the lagged map pose goes on until it reaches until_ns or the
   // last base sample (the smoothed path is as good as it will get). A step at a time, as the
@@ -207,7 +208,7 @@ class Localizer {
   double distance_scale_ = 1.0;
   double yaw_rate_bias_radps_ = 0.0;
   std::span<Pose3> map_poses_;                // a ring, oldest at map_first_
-  Pose2 odometry_pose_;                       // dead reckoning, never pulled
+  Pose2 odometry_pose_;                       // raw dead reckoning, never pulled
   std::span<Pose2> odometry_poses_;           // with each of map_poses_, at the same index
   std::array<TimestampNs, 8> snap_stamps_{};  // the last snaps' stamps (a ring)
   std::size_t snap_next_ = 0;

@@ -17,9 +17,9 @@
 //
 // What it does with a scan (add_scan):
 //  1. The prediction, in the matcher's own frame: the matched pose of the scan before, moved
-//     by the odometry since (the filter's calibrated dead reckoning, not its pose, which is
-//     drawn toward GPS fixes and turns with them). Between two scans of a 75 Hz laser that is
-//     millimetres off.
+//     by the odometry since (the wheels and gyroscope as they report, less the gyroscope bias
+//     the matches have shown; not the filter's pose, which is drawn toward GPS fixes and
+//     turns with them). Between two scans of a 75 Hz laser that is millimetres off.
 //  2. Gauss-Newton on the bilinearly interpolated grid, coarse to fine (Hector's
 //     (1 - M(S(xi)))^2). Each point moves only across its own surface (its normal from its
 //     neighbours in the scan), and a prior at the prediction holds what the scan does not
@@ -35,7 +35,10 @@
 //     the matched path onto the filter's (Procrustes over an exponential memory of
 //     anchor_time_s). Every scan is drawn with both: rigid over the minutes the grid holds,
 //     where GPS puts it over those minutes. The anchor moves by the GPS's slow error
-//     averaged over that memory, not by each fix.
+//     averaged over that memory, not by each fix. A caller that places the matched path
+//     itself (the mapper's rigid path) turns the anchor off (anchor_time_s 0): the frame
+//     is then the first scan's for the whole run, and a wall seen while an anchor moved
+//     would have bent with it.
 //
 // Fixed size: the grid and the scan's points are taken from the arena at init; add_scan
 // allocates nothing.
@@ -69,7 +72,7 @@ struct ScanMatchConfig {
   // edge, where the lasers' range ended for the scans before, lies beyond them. (Matched
   // there, a return just past the edge is pulled back into what is known, and every scan
   // drags the pose back along a street.)
-  double max_match_range_m = 20.0;
+  double max_match_range_m = 40.0;
   // A scan goes into the grid only once the robot has moved this far or turned this much
   // since the last one that did (Hector's map update thresholds). Every scan matched against
   // a grid it drew itself a centimetre back is held there by the cells' steps: the pose
@@ -159,6 +162,10 @@ class ScanMatcher {
   void reset() noexcept;
 
   [[nodiscard]] bool enabled() const noexcept { return config_.enabled; }
+  // Whether its frame is laid onto the filter's path (anchor_time_s > 0): a snap of the
+  // filter's poses then moves the grid's place, and the grid starts over. Unanchored, the
+  // frame is the matcher's alone, and a snap changes nothing in it.
+  [[nodiscard]] bool anchored() const noexcept { return config_.anchor_time_s > 0.0; }
   [[nodiscard]] const PlanarCorrection& correction() const noexcept { return correction_; }
   // The last scan's pose in the matcher's own frame (the grid's).
   [[nodiscard]] const Pose2& matched() const noexcept { return last_matched_; }
