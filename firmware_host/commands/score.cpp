@@ -254,23 +254,23 @@ BuildingScore score_buildings(const Truth& truth, const Estimate& estimate,
   return score;
 }
 
+// A path's error after its alignment.
+nlohmann::json path_error_json(const hal::sim::PathAlignment& path) {
+  return {{"poses", path.pairs},
+          {"rms_m", path.rms_m},
+          {"median_m", path.median_m},
+          {"max_m", path.max_m}};
+}
+
 nlohmann::json score_json(const std::string& path_file, const hal::sim::PathAlignment& path,
                           const hal::sim::PathAlignment& matched,
                           const hal::sim::PlaneScore& planes, const BuildingScore& buildings) {
-  return {{"path",
-           {{"file", path_file},
-            {"poses", path.pairs},
-            {"rms_m", path.rms_m},
-            {"median_m", path.median_m},
-            {"max_m", path.max_m},
-            {"alignment",
-             {{"yaw_deg", path.yaw_rad / kRadiansPerDegree},
-              {"shift_m", {path.shift_m.x(), path.shift_m.y(), path.shift_m.z()}}}}}},
-          {"matched_path",
-           {{"poses", matched.pairs},
-            {"rms_m", matched.rms_m},
-            {"median_m", matched.median_m},
-            {"max_m", matched.max_m}}},
+  nlohmann::json path_json = path_error_json(path);
+  path_json["file"] = path_file;
+  path_json["alignment"] = {{"yaw_deg", path.yaw_rad / kRadiansPerDegree},
+                            {"shift_m", {path.shift_m.x(), path.shift_m.y(), path.shift_m.z()}}};
+  return {{"path", path_json},
+          {"matched_path", path_error_json(matched)},
           {"planes",
            {{"walls_found", planes.walls_found},
             {"walls", planes.walls_considered},

@@ -499,6 +499,7 @@ void ScanMatcher::learn_yaw_rate_bias(double turn_from_prediction_rad) noexcept 
     yaw_rate_bias_radps_ -= turn_from_prediction_rad / config_.yaw_rate_bias_time_s;
   }
 }
+
 Eigen::Vector3d ScanMatcher::matched_pose(const Pose2& predicted, const Pose2& raw_pose,
                                           double robot_z_m,
                                           std::span<const Eigen::Vector3f> points_m) noexcept {

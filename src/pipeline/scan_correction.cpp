@@ -29,10 +29,10 @@ ScanCorrection::Outcome ScanCorrection::correct(std::size_t laser,
   localize::Pose3 drawn;
   localize::Pose2 odometry;
   if (matched_[laser] && localizer.map_pose_at(first.stamp_ns, drawn, &odometry)) {
-    // The filter's poses jumped to its estimate (its start, a recovery) since the last
-    // matched scan: the grid drawn with the poses before is of another frame. By the snap's
-    // stamp, not by when the localizer made it: it runs ahead of the scans by however the
-    // messages came.
+    // An anchored matcher whose filter's poses jumped to its estimate (its start, a recovery)
+    // since the last matched scan: the grid drawn with the poses before is of another frame.
+    // By the snap's stamp, not by when the localizer made it: it runs ahead of the scans by
+    // however the messages came. (Unanchored, the frame is the matcher's and goes on.)
     if (paused_ || (matcher_.anchored() &&
                     localizer.map_pose_snapped_between(last_matched_scan_ns_, first.stamp_ns))) {
       paused_ = false;

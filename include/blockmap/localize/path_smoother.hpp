@@ -62,10 +62,9 @@ struct PathSmootherConfig {
   double yaw_sigma_per_sqrt_s = 0.001;
   // The same across the way and in the turn for the motion scans were matched over, once the
   // caller says how much the odometry carried alone (note_dead_reckoning(); without, all of
-  // the motion is the odometry's).
-  // A scan matcher holds those to its map far tighter than dead reckoning does, and its turn
-  // has no gyroscope bias (yaw_sigma_per_sqrt_s counts the dead-reckoned time only, once the
-  // caller notes any).
+  // the motion is the odometry's). A scan matcher holds those to its map far tighter than
+  // dead reckoning does, and its turn has no gyroscope bias: yaw_sigma_per_sqrt_s then
+  // counts over the dead-reckoned time only.
   double matched_across_sigma_per_sqrt_m = 0.01;
   double matched_yaw_sigma_per_sqrt_m = 0.002;
   // The receiver: the slow part of its error per axis and how long it lasts, and the fast
