@@ -198,6 +198,21 @@ void MappingSession::report(std::ostream& err, double data_s) const {
         static_cast<unsigned long long>(mapper_.registry().counters().view_moved),
         static_cast<unsigned long long>(rigid.fixes_dropped));
     err << text;
+    const localize::LoopCloser& closer = mapper_.loop_closer();
+    if (closer.enabled()) {
+      const localize::LoopClosureCounters& l = closer.counters();
+      std::snprintf(
+          text, sizeof text,
+          "loop closing: %llu submaps (%zu kept, %llu thinnings), %llu matched against "
+          "an earlier one, %llu closures (%llu with too few cells on it, %llu leaving "
+          "the window), %zu in the path (%llu dropped when full)\n",
+          static_cast<unsigned long long>(l.submaps), closer.submap_count(),
+          static_cast<unsigned long long>(l.thinnings), static_cast<unsigned long long>(l.searches),
+          static_cast<unsigned long long>(l.closures), static_cast<unsigned long long>(l.low_score),
+          static_cast<unsigned long long>(l.off_window), mapper_.rigid_path().closure_count(),
+          static_cast<unsigned long long>(p.closures_dropped));
+      err << text;
+    }
   }
   // Each capacity against the most it held, for sizing a robot's config (config/README.md).
   const planes::PlanesConfig& detector = mapper_.detector().config();

@@ -49,8 +49,42 @@ void read_rigid_path_table(TableReader& t, pipeline::MapperConfig& c) {
   r.tie_huber_sigmas = t.positive_or("tie_huber_sigmas", r.tie_huber_sigmas);
   r.tie_gate_deg = t.positive_or("tie_gate_deg", r.tie_gate_deg);
   r.cg_iterations = static_cast<std::uint32_t>(t.capacity_or("cg_iterations", r.cg_iterations));
+  // Loop closures (0: none).
+  r.max_closures = static_cast<std::size_t>(t.non_negative(
+      "max_closures", static_cast<double>(t.integer_or(
+                          "max_closures", static_cast<std::int64_t>(r.max_closures)))));
+  r.closure_huber_sigmas = t.positive_or("closure_huber_sigmas", r.closure_huber_sigmas);
   t.finish();
   if (const std::string problem = localize::validate(r); !problem.empty()) {
+    t.reject(problem);
+  }
+}
+
+// Loop closing on the rigid path: submaps of the level scans matched against the earlier
+// ones near them (docs/localize.md, Loop closing).
+void read_loop_closure_table(TableReader& t, localize::LoopClosureConfig& l) {
+  l.enabled = t.boolean_or("enabled", l.enabled);
+  l.cell_m = t.positive_or("cell_m", l.cell_m);
+  l.submap_length_m = t.positive_or("submap_length_m", l.submap_length_m);
+  l.scan_spacing_m = t.non_negative_or("scan_spacing_m", l.scan_spacing_m);
+  l.max_range_m = t.positive_or("max_range_m", l.max_range_m);
+  l.join_gap_m = t.non_negative_or("join_gap_m", l.join_gap_m);
+  l.max_submaps = t.capacity_or("max_submaps", l.max_submaps);
+  l.max_cells_per_submap = t.capacity_or("max_cells_per_submap", l.max_cells_per_submap);
+  l.max_query_points = t.capacity_or("max_query_points", l.max_query_points);
+  l.grid_across = static_cast<std::uint32_t>(t.capacity_or("grid_across", l.grid_across));
+  l.levels = static_cast<std::uint32_t>(t.capacity_or("levels", l.levels));
+  l.candidate_distance_m = t.positive_or("candidate_distance_m", l.candidate_distance_m);
+  l.min_travel_apart_m = t.non_negative_or("min_travel_apart_m", l.min_travel_apart_m);
+  l.max_candidates = t.capacity_or("max_candidates", l.max_candidates);
+  l.search_radius_m = t.positive_or("search_radius_m", l.search_radius_m);
+  l.search_yaw_deg = t.non_negative_or("search_yaw_deg", l.search_yaw_deg);
+  l.min_score = t.positive_or("min_score", l.min_score);
+  l.point_sigma_m = t.positive_or("point_sigma_m", l.point_sigma_m);
+  l.floor_sigma_m = t.positive_or("floor_sigma_m", l.floor_sigma_m);
+  l.floor_sigma_deg = t.positive_or("floor_sigma_deg", l.floor_sigma_deg);
+  t.finish();
+  if (const std::string problem = localize::validate(l); !problem.empty()) {
     t.reject(problem);
   }
 }
@@ -110,6 +144,9 @@ pipeline::MapperConfig parse_mapper_config(std::string_view text, std::string_vi
   if (auto table = root.table("rigid_path")) {
     read_rigid_path_table(*table, c);
   }
+  if (auto table = root.table("loop_closure")) {
+    read_loop_closure_table(*table, c.loop_closure);
+  }
   bool anchor_set = false;
   if (auto table = root.table("scan_matching")) {
     anchor_set = table->has("anchor_time_s");
@@ -128,7 +165,7 @@ pipeline::MapperConfig parse_mapper_config(std::string_view text, std::string_vi
   }
   if (c.planes.max_blocks > c.window.max_samples) {
     throw ConfigError(std::string(source) +
-                      ": planes.max_blocks: must be at most [window] max_samples (0: a quarter of "
+                      ": planes.max_blocks: must be at most [window] max_samples (0: a sixth of "
                       "them)");
   }
   return c;

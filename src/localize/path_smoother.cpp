@@ -83,13 +83,18 @@ std::string validate(const PathSmootherConfig& config) {
     return "path smoother: tie_offset_sigma_m, tie_angle_sigma_deg, tie_huber_sigmas and "
            "tie_gate_deg must be positive and cg_iterations at least 1 (or max_ties = 0)";
   }
+  if (config.max_closures > 0 &&
+      (!positive(config.closure_huber_sigmas) || config.cg_iterations == 0)) {
+    return "path smoother: closure_huber_sigmas must be positive and cg_iterations at least 1 "
+           "(or max_closures = 0)";
+  }
   return {};
 }
 
 std::size_t PathSmoother::arena_bytes(const PathSmootherConfig& config) noexcept {
   constexpr std::size_t kSlack = 2 * alignof(std::max_align_t);
   return config.max_keyframes * (sizeof(Keyframe) + sizeof(Blocks)) +
-         config.max_ties * sizeof(Tie) + 3 * kSlack;
+         config.max_ties * sizeof(Tie) + config.max_closures * sizeof(Closure) + 4 * kSlack;
 }
 
 void PathSmoother::init(Arena& arena, const PathSmootherConfig& config) {
@@ -99,13 +104,16 @@ void PathSmoother::init(Arena& arena, const PathSmootherConfig& config) {
   keyframes_ = arena.allocate_array<Keyframe>(config.max_keyframes, "localize.path_keyframes");
   blocks_ = arena.allocate_array<Blocks>(config.max_keyframes, "localize.path_normal_equations");
   ties_ = arena.allocate_array<Tie>(config.max_ties, "localize.path_ties");
+  closures_ = arena.allocate_array<Closure>(config.max_closures, "localize.path_closures");
   count_ = 0;
   tie_count_ = 0;
+  closure_count_ = 0;
   counters_ = {};
 }
 
 std::size_t PathSmoother::memory_bytes() const noexcept {
-  return keyframes_.size_bytes() + blocks_.size_bytes() + ties_.size_bytes();
+  return keyframes_.size_bytes() + blocks_.size_bytes() + ties_.size_bytes() +
+         closures_.size_bytes();
 }
 
 void PathSmoother::FixMean::merge(double east, double north, double more_weight) noexcept {
@@ -421,7 +429,7 @@ bool PathSmoother::solve_step() noexcept {
   if (!factor_band()) {
     return false;
   }
-  if (tie_count_ == 0) {
+  if (tie_count_ == 0 && closure_count_ == 0) {
     solve_band(kResidual, &Blocks::step);
     return true;
   }
@@ -445,6 +453,7 @@ bool PathSmoother::solve_step() noexcept {
     ++counters_.cg_steps;
     multiply_band(&Blocks::direction, kProduct);
     add_ties_times(&Blocks::direction, kProduct);
+    add_closures_times(&Blocks::direction, kProduct);
     const double curvature = dot(&Blocks::direction, kProduct);
     if (!(curvature > 0.0)) {
       break;
@@ -486,6 +495,10 @@ void PathSmoother::solve() noexcept {
     for (std::size_t t = 0; t < tie_count_; ++t) {
       linearize_tie(ties_[t]);
       accumulate_tie_gradient(ties_[t]);
+    }
+    for (std::size_t c = 0; c < closure_count_; ++c) {
+      linearize_closure(closures_[c]);
+      accumulate_closure_gradient(closures_[c]);
     }
     if (!solve_step()) {
       return;

@@ -13,7 +13,7 @@ namespace {
 // scattered).
 std::size_t window_blocks(std::size_t max_samples) noexcept {
   constexpr std::size_t kSmallWindowBlocks = 4096;
-  return std::max(max_samples / 4, std::min(max_samples, kSmallWindowBlocks));
+  return std::max(max_samples / 6, std::min(max_samples, kSmallWindowBlocks));
 }
 
 }  // namespace
@@ -146,6 +146,9 @@ std::string validate_rigid_path(const MapperConfig& config) {
     return {};
   }
   if (std::string problem = localize::validate(config.path); !problem.empty()) {
+    return problem;
+  }
+  if (std::string problem = localize::validate(config.loop_closure); !problem.empty()) {
     return problem;
   }
   if (!matcher_config(config).enabled) {

@@ -48,8 +48,10 @@ double overlap_m(double a_from, double a_to, double b_from, double b_to) noexcep
 
 }  // namespace
 
-void RigidPathSolver::init(Arena& arena, const localize::PathSmootherConfig& config) {
+void RigidPathSolver::init(Arena& arena, const localize::PathSmootherConfig& config,
+                           const localize::LoopClosureConfig& loops) {
   path_.init(arena, config);
+  closer_.init(arena, loops);
 }
 
 void RigidPathSolver::add_fix(const localize::GpsObservation& robot_fix) noexcept {
@@ -58,8 +60,8 @@ void RigidPathSolver::add_fix(const localize::GpsObservation& robot_fix) noexcep
 
 void RigidPathSolver::add_matched_scan(TimestampNs stamp_ns, const localize::Pose2& matched,
                                        const localize::Pose2& drawn,
-                                       const localize::Pose2& odometry,
-                                       bool scan_matched) noexcept {
+                                       const localize::Pose2& odometry, bool scan_matched,
+                                       std::span<const Eigen::Vector2d> match_points_m) noexcept {
   if (rebase_due_ && have_last_) {
     // Where the dead reckoning carries the last pose (the rigid motion that lays the last
     // odometry pose on the last path pose, applied to this one): the new frame's first pose
@@ -93,6 +95,14 @@ void RigidPathSolver::add_matched_scan(TimestampNs stamp_ns, const localize::Pos
   }
   if (!added) {
     path_.add(in_path, drawn_at, std::nullopt);
+  }
+  // A finished submap is matched against the earlier ones near it: the verified revisits
+  // hold the passes to each other.
+  if (scan_matched && closer_.add_scan(in_path, match_points_m)) {
+    const std::size_t closures = closer_.find_closures(path_, found_);
+    for (std::size_t k = 0; k < closures; ++k) {
+      path_.close_loop(found_[k]);
+    }
   }
   if (stamp_ns >= next_solve_ns_) {
     path_.solve();

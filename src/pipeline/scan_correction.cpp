@@ -46,7 +46,7 @@ ScanCorrection::Outcome ScanCorrection::correct(std::size_t laser,
     correction = matcher_.add_scan(raw, odometry, first.z_m, points_m);
     if (path != nullptr) {
       path->add_matched_scan(first.stamp_ns, matcher_.matched(), correction.apply(raw), odometry,
-                             matcher_.last_scan_matched());
+                             matcher_.last_scan_matched(), matcher_.match_points());
     }
     corrections_.push_overwrite({first.stamp_ns, correction});
   } else {

@@ -368,6 +368,48 @@ TEST(PathSmootherTies, AWallSeenOnTwoPassesIsOneWallOnTheSolvedPath) {
   EXPECT_NEAR(middle_m[1], OutAndBack::kWallNorthM, 0.3);
 }
 
+// A loop closure on the same drive: the lasers matched the way back at x = 30 m to the way out
+// there, and say the two poses are the same place turned half round. The solved path holds
+// them so, wherever the receiver's slow error put each pass.
+TEST(PathSmootherClosures, ALoopClosureHoldsTwoPassesWhereTheLasersPutThem) {
+  double apart_m[2] = {};
+  for (const bool closed : {false, true}) {
+    SmootherFixture fixture(OutAndBack::loose_odometry());
+    OutAndBack::drive(fixture.smoother, false);
+    double bias_north_m = 0.0;
+    LoopClosure closure;
+    closure.earlier = OutAndBack::truth(OutAndBack::out_ns(), bias_north_m);
+    closure.later = OutAndBack::truth(OutAndBack::back_ns(), bias_north_m);
+    closure.measured = Eigen::Vector3d(0.0, 0.0, synthetic::kPi);
+    closure.information = Eigen::Vector3d(400.0, 400.0, 1e4).asDiagonal();
+    if (closed) {
+      fixture.smoother.close_loop(closure);
+      fixture.smoother.solve();
+    }
+    const Pose2 out = fixture.smoother.solved_pose(closure.earlier);
+    const Pose2 back = fixture.smoother.solved_pose(closure.later);
+    apart_m[closed ? 1 : 0] = std::hypot(out.x_m - back.x_m, out.y_m - back.y_m);
+    std::printf("%s: the two passes at x = 30 m lie %.3f m apart\n",
+                closed ? "closed" : "without the closure", apart_m[closed ? 1 : 0]);
+    EXPECT_EQ(fixture.smoother.closure_count(), closed ? 1u : 0u);
+  }
+  EXPECT_GT(apart_m[0], 0.4);
+  EXPECT_LT(apart_m[1], 0.05);
+}
+
+TEST(PathSmootherClosures, AFullSetDropsEveryOtherOfTheOlderHalf) {
+  PathSmootherConfig config;
+  config.max_closures = 8;
+  SmootherFixture fixture(config);
+  fixture.smoother.add(Pose2{0, 0.0, 0.0, 0.0}, std::nullopt);
+  for (int k = 0; k < 9; ++k) {
+    fixture.smoother.close_loop(LoopClosure{Pose2{k, 0.0, 0.0, 0.0}, Pose2{k, 0.0, 0.0, 0.0}});
+  }
+  EXPECT_EQ(fixture.smoother.closure_count(), 7u);
+  EXPECT_EQ(fixture.smoother.counters().closures, 9u);
+  EXPECT_EQ(fixture.smoother.counters().closures_dropped, 2u);
+}
+
 TEST(PathSmootherTies, OnePassRefreshesItsTie) {
   PathSmootherConfig config;
   config.max_ties = 2;

@@ -85,7 +85,7 @@ TEST(MapperConfigFile, WhatTheMapperDerivesIsRefusedNamingTheKey) {
   EXPECT_NE(error_of("[planes]\nsection_stride_m = 0.8\n", base).find("planes.section_stride_m"),
             std::string::npos);
   EXPECT_EQ(error_of("[planes]\nmax_blocks = 100000\n", base),
-            "map.toml: planes.max_blocks: must be at most [window] max_samples (0: a quarter of "
+            "map.toml: planes.max_blocks: must be at most [window] max_samples (0: a sixth of "
             "them)");
 }
 
@@ -104,6 +104,20 @@ TEST(MapperConfigFile, TheRigidPathPlacesTheMatchersFrame) {
                           "map.toml", papers_robot());
   EXPECT_FALSE(pipeline::solves_the_path(anchored));
   EXPECT_EQ(pipeline::matcher_config(anchored).anchor_time_s, 60.0);
+}
+
+TEST(MapperConfigFile, TheLoopClosureTableIsReadAndCheckedAndItsTypoRefused) {
+  const pipeline::MapperConfig c = parse_mapper_config(
+      "[loop_closure]\nmax_candidates = 2\nmin_score = 0.7\n[rigid_path]\nmax_closures = 16\n",
+      "map.toml", papers_robot());
+  EXPECT_EQ(c.loop_closure.max_candidates, 2u);
+  EXPECT_EQ(c.loop_closure.min_score, 0.7);
+  EXPECT_EQ(c.path.max_closures, 16u);
+  EXPECT_NE(error_of("[loop_closure]\nmax_candidates = 9\n", papers_robot()).find("max_candidates"),
+            std::string::npos);
+  EXPECT_NE(error_of("[loop_closure]\nmin_scor = 0.7\n", papers_robot()).find("min_scor"),
+            std::string::npos);
+  EXPECT_EQ(error_of("[loop_closure]\nenabled = false\n", papers_robot()), "(no error)");
 }
 
 TEST(MapperConfigFile, ALevelOnlyRobotCannotTurnWallsFromLinesOff) {

@@ -93,6 +93,10 @@ struct PathSmootherConfig {
   double tie_gate_deg = 5.0;
   // Conjugate-gradient steps per Gauss-Newton step when there are ties.
   std::uint32_t cg_iterations = 64;
+  // Loop closures: the most kept (when full, every other one of the older half goes), and
+  // beyond how many sigmas (Mahalanobis) one pulls no harder.
+  std::size_t max_closures = 256;
+  double closure_huber_sigmas = 3.0;
 };
 
 // A wall as one pass drew it (in the caller's drawn map): its horizontal unit normal, a point
@@ -103,6 +107,16 @@ struct WallLook {
   Eigen::Vector2d point_m = Eigen::Vector2d::Zero();
 };
 
+// A loop closure (LoopCloser): `later`'s pose in `earlier`'s frame as the lasers matched
+// them, both given as the odometry poses of their times (what add() was given then), with
+// the match's information on (x, y, yaw).
+struct LoopClosure {
+  Pose2 earlier;
+  Pose2 later;
+  Eigen::Vector3d measured = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
+};
+
 // Empty when usable, otherwise what is wrong.
 [[nodiscard]] std::string validate(const PathSmootherConfig& config);
 
@@ -111,12 +125,14 @@ struct PathSmootherCounters {
   std::uint64_t fixes = 0;
   std::uint64_t thinnings = 0;  // the keyframes filled and every other one was merged
   std::uint64_t solves = 0;
-  std::uint64_t refused = 0;         // add() with a time before the last keyframe's
-  std::uint64_t ties = 0;            // ties between passes added
-  std::uint64_t ties_refreshed = 0;  // a later look of the same pass took a tie's place
-  std::uint64_t ties_dropped = 0;    // the ties were full and the new one was the spare
-  std::uint64_t ties_replaced = 0;   // the ties were full and a kept one gave the new its place
-  std::uint64_t cg_steps = 0;        // conjugate-gradient steps, all solves
+  std::uint64_t refused = 0;           // add() with a time before the last keyframe's
+  std::uint64_t ties = 0;              // ties between passes added
+  std::uint64_t ties_refreshed = 0;    // a later look of the same pass took a tie's place
+  std::uint64_t ties_dropped = 0;      // the ties were full and the new one was the spare
+  std::uint64_t ties_replaced = 0;     // the ties were full and a kept one gave the new its place
+  std::uint64_t cg_steps = 0;          // conjugate-gradient steps, all solves
+  std::uint64_t closures = 0;          // loop closures added
+  std::uint64_t closures_dropped = 0;  // the closures were full: kept ones that went
 };
 
 class PathSmoother {
@@ -161,6 +177,11 @@ class PathSmoother {
   bool tie(std::uint32_t key, const WallLook& earlier, const WallLook& later) noexcept;
   [[nodiscard]] std::size_t tie_count() const noexcept { return tie_count_; }
 
+  // A loop closure between two times of the path; its pull is Huber's beyond
+  // closure_huber_sigmas. When full, every other one of the older half goes first.
+  void close_loop(const LoopClosure& closure) noexcept;
+  [[nodiscard]] std::size_t closure_count() const noexcept { return closure_count_; }
+
   // Gauss-Newton over the whole path, from the last solution (new keyframes start where the
   // odometry puts them from the keyframe before). Cost: O(keyframes) per iteration without
   // ties; with them, O(keyframes) per conjugate-gradient step.
@@ -175,6 +196,9 @@ class PathSmoother {
   [[nodiscard]] Pose2 pose_at(TimestampNs stamp_ns) const noexcept;
   // Keyframe i's drawn pose (as given), and the rigid motion that takes it to the solved one:
   // what moves a part of the map drawn at that time to where the solved path puts it.
+  // The solved pose at a time whose odometry pose the caller has: the nearest keyframe's,
+  // moved by the odometry from it (keyframes between fixes are not every scan's).
+  [[nodiscard]] Pose2 solved_pose(const Pose2& odometry) const noexcept;
   [[nodiscard]] const Pose2& drawn(std::size_t i) const noexcept;
   [[nodiscard]] const Pose2& odometry(std::size_t i) const noexcept;
   [[nodiscard]] PlanarCorrection correction(std::size_t i) const noexcept;
@@ -226,6 +250,19 @@ class PathSmoother {
     double weight[2] = {};
   };
 
+  // A closure and its terms at the last linearization: the keyframes nearest its ends, the
+  // residual's Jacobians on their (x, y, yaw) (3 x 3, row-major), and its weight (the
+  // information, Huber's share taken).
+  struct Closure {
+    LoopClosure closure;
+    std::size_t a = 0;
+    std::size_t b = 0;
+    double jacobian_a[9] = {};
+    double jacobian_b[9] = {};
+    double residual[3] = {};
+    double weight[9] = {};
+  };
+
   void append(const Pose2& odometry, const Pose2& drawn) noexcept;
   void thin() noexcept;
   void accumulate_motion(std::size_t i) noexcept;
@@ -242,6 +279,9 @@ class PathSmoother {
   [[nodiscard]] std::size_t spare_tie_slot(const Tie& candidate) const noexcept;
   void linearize_tie(Tie& tie) const noexcept;
   void accumulate_tie_gradient(const Tie& tie) noexcept;
+  void linearize_closure(Closure& closure) const noexcept;
+  void accumulate_closure_gradient(const Closure& closure) noexcept;
+  void add_closures_times(Vector5Member in, Vector5Member out) noexcept;
   [[nodiscard]] std::size_t keyframe_nearest(TimestampNs stamp_ns) const noexcept;
   // The band's block Cholesky in place, then band^-1 of `in` into `out`, and band times `in`.
   [[nodiscard]] bool factor_band() noexcept;
@@ -257,8 +297,10 @@ class PathSmoother {
   std::span<Keyframe> keyframes_;
   std::span<Blocks> blocks_;
   std::span<Tie> ties_;
+  std::span<Closure> closures_;
   std::size_t count_ = 0;
   std::size_t tie_count_ = 0;
+  std::size_t closure_count_ = 0;
   double dead_reckoned_m_ = 0.0;  // noted since the last keyframe
   double dead_reckoned_s_ = 0.0;
   bool noted_dead_reckoning_ = false;  // the caller tells matched motion from odometry's

@@ -173,6 +173,10 @@ class ScanMatcher {
   [[nodiscard]] bool last_scan_matched() const noexcept { return tracking_; }
   // The last scan's points that took part in its match.
   [[nodiscard]] std::size_t points_used() const noexcept { return scan_count_; }
+  // Those points, in the robot frame.
+  [[nodiscard]] std::span<const Eigen::Vector2d> match_points() const noexcept {
+    return scan_m_.first(scan_count_);
+  }
   [[nodiscard]] const ScanMatchCounters& counters() const noexcept { return counters_; }
   // The gyroscope bias the matches say the odometry's turn has (rad/s).
   [[nodiscard]] double yaw_rate_bias_radps() const noexcept { return yaw_rate_bias_radps_; }

@@ -158,6 +158,9 @@ class Mapper {
   }
   [[nodiscard]] const localize::PathSmoother& rigid_path() const noexcept { return path_.path(); }
   [[nodiscard]] RigidPathCounters rigid_path_counters() const noexcept { return path_.counters(); }
+  [[nodiscard]] const localize::LoopCloser& loop_closer() const noexcept {
+    return path_.loop_closer();
+  }
   [[nodiscard]] bool rigid_path_on() const noexcept { return path_on_; }
   [[nodiscard]] const map::ProjectionCounters& projection(std::size_t laser) const noexcept {
     return projectors_[laser].counters();

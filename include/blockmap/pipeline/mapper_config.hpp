@@ -10,6 +10,7 @@
 
 #include "blockmap/buildings/buildings_config.hpp"
 #include "blockmap/localize/localizer.hpp"
+#include "blockmap/localize/loop_closer.hpp"
 #include "blockmap/localize/path_smoother.hpp"
 #include "blockmap/localize/scan_matcher.hpp"
 #include "blockmap/map/free_space_grid.hpp"
@@ -24,8 +25,9 @@
 namespace blockmap::pipeline {
 
 // The detector's defaults for a window: 6-9 samples per occupied block on the simulated
-// worlds, so a quarter of the window's samples in blocks is plenty. max_blocks = 0 here means
-// that quarter (detector_config), so that a larger window gets the blocks to hold it.
+// worlds, so a sixth of the window's samples in blocks holds even a full window of the
+// sparsest. max_blocks = 0 here means that sixth (detector_config), so that a larger window
+// gets the blocks to hold it.
 // The corner look is off: in the streamed maps it found nothing more, at a cost in time
 // (docs/mapper.md; [planes] corner_look = true turns it on).
 [[nodiscard]] inline planes::PlanesConfig window_planes_config() noexcept {
@@ -88,6 +90,9 @@ struct MapperConfig {
   // moved); on by default wherever those hold.
   RigidPath rigid_path = RigidPath::kWhereScansAreMatched;
   localize::PathSmootherConfig path = path_for_matched_scans();
+  // With the rigid path: revisits found by matching submaps of the level scans against the
+  // earlier ones near them, each a constraint on the path (localize::LoopCloser).
+  localize::LoopClosureConfig loop_closure;
   // With the rigid path, the stream shows each plane where the latest solve puts it (every
   // 10 s of scan time; docs/localize.md, The rigid map as it goes), and the buildings are
   // fitted to the planes so: a plane is reported again when that moves it more than

@@ -5,11 +5,13 @@
 // ties a wall seen again to its earlier look.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 
 #include "blockmap/core/arena.hpp"
 #include "blockmap/core/ring_buffer.hpp"
+#include "blockmap/localize/loop_closer.hpp"
 #include "blockmap/localize/path_smoother.hpp"
 #include "blockmap/map/plane_registry.hpp"
 #include "blockmap/msg/plane_patch.hpp"
@@ -24,10 +26,11 @@ struct RigidPathCounters {
 
 class RigidPathSolver final : public map::PlaneView {
  public:
-  void init(Arena& arena, const localize::PathSmootherConfig& config);
-  [[nodiscard]] static std::size_t arena_bytes(
-      const localize::PathSmootherConfig& config) noexcept {
-    return localize::PathSmoother::arena_bytes(config);
+  void init(Arena& arena, const localize::PathSmootherConfig& config,
+            const localize::LoopClosureConfig& loops);
+  [[nodiscard]] static std::size_t arena_bytes(const localize::PathSmootherConfig& config,
+                                               const localize::LoopClosureConfig& loops) noexcept {
+    return localize::PathSmoother::arena_bytes(config) + localize::LoopCloser::arena_bytes(loops);
   }
 
   // A fix the localizer took, as the robot frame's position: it waits for the first matched
@@ -38,10 +41,12 @@ class RigidPathSolver final : public map::PlaneView {
   void rebase() noexcept { rebase_due_ = true; }
   // A level scan: `matched` in the matcher's frame, `drawn` where it was drawn, `odometry`
   // the dead-reckoned pose at its time; `scan_matched` false when the prediction stood (the
-  // motion to it is the odometry's alone). Solves again every 10 s of scan time.
+  // motion to it is the odometry's alone), `match_points_m` the points its match used in
+  // the robot frame (the loop closer's submaps). Solves again every 10 s of scan time.
   void add_matched_scan(TimestampNs stamp_ns, const localize::Pose2& matched,
                         const localize::Pose2& drawn, const localize::Pose2& odometry,
-                        bool scan_matched) noexcept;
+                        bool scan_matched,
+                        std::span<const Eigen::Vector2d> match_points_m) noexcept;
   // Whether a solve came since the last call (the view is due for a refresh).
   [[nodiscard]] bool take_solved() noexcept;
   // The end: the whole run's path once more (before the last planes are finalized, so that
@@ -68,6 +73,7 @@ class RigidPathSolver final : public map::PlaneView {
                                        const map::SeenSpans& seen) const noexcept override;
 
   [[nodiscard]] const localize::PathSmoother& path() const noexcept { return path_; }
+  [[nodiscard]] const localize::LoopCloser& loop_closer() const noexcept { return closer_; }
   [[nodiscard]] RigidPathCounters counters() const noexcept {
     return {fixes_.dropped_oldest().value(), ties_other_side_, planes_moved_};
   }
@@ -82,6 +88,9 @@ class RigidPathSolver final : public map::PlaneView {
                           Eigen::Vector2d& from_m) const noexcept;
 
   localize::PathSmoother path_;
+  // Revisits found by matching submaps, as constraints on path_.
+  localize::LoopCloser closer_;
+  std::array<localize::LoopClosure, localize::kMaxClosureCandidates> found_{};
   RingBuffer<localize::GpsObservation, 64> fixes_;  // waiting for a matched scan
   TimestampNs next_solve_ns_ = 0;
   bool solved_ = false;

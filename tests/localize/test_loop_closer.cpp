@@ -1,0 +1,234 @@
+// Loop closing (localize::LoopCloser) on a street with buildings on both sides and gaps
+// between them: out along it and back on the other side of the road, the way back's
+// odometry turned by a degree and shifted by half a metre (the drift of a few hundred metres
+// of matched scans). Each finished submap of the way back is matched against the way out's,
+// and the closure must say where the two poses truly lie to each other (docs/localize.md,
+// Loop closing).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "blockmap/core/angles.hpp"
+#include "blockmap/core/arena.hpp"
+#include "blockmap/localize/loop_closer.hpp"
+#include "blockmap/localize/path_smoother.hpp"
+
+namespace blockmap::localize {
+namespace {
+
+struct Facade {
+  Eigen::Vector2d from_m;
+  Eigen::Vector2d to_m;
+};
+
+// Facades 8 m either side of the street's axis, in irregular lengths, and the side walls of
+// the gaps between them going back 12 m: what holds a match along the street.
+std::vector<Facade> street_of(double facade_north_m) {
+  std::vector<Facade> walls;
+  const double north_blocks[][2] = {{0, 17},  {20, 41},   {45, 52},  {58, 80},
+                                    {83, 99}, {104, 130}, {133, 160}};
+  const double south_blocks[][2] = {{0, 9},    {12, 33},   {38, 61},  {64, 70},
+                                    {76, 102}, {107, 121}, {126, 160}};
+  for (const auto& [from, to] : north_blocks) {
+    walls.push_back({{from, facade_north_m}, {to, facade_north_m}});
+    walls.push_back({{from, facade_north_m}, {from, facade_north_m + 12.0}});
+    walls.push_back({{to, facade_north_m}, {to, facade_north_m + 12.0}});
+  }
+  for (const auto& [from, to] : south_blocks) {
+    walls.push_back({{from, -8.0}, {to, -8.0}});
+    walls.push_back({{from, -8.0}, {from, -20.0}});
+    walls.push_back({{to, -8.0}, {to, -20.0}});
+  }
+  return walls;
+}
+
+// What a forward-looking level laser returns at `pose` (no occlusion): the walls' points
+// every 10 cm within 30 m and ahead of the robot, in the robot frame, by bearing.
+std::vector<Eigen::Vector2d> laser_scan_at(const std::vector<Facade>& walls, const Pose2& pose) {
+  const Eigen::Rotation2Dd to_robot(-pose.yaw_rad);
+  const Eigen::Vector2d at_m(pose.x_m, pose.y_m);
+  std::vector<Eigen::Vector2d> points;
+  for (const Facade& wall : walls) {
+    const double length_m = (wall.to_m - wall.from_m).norm();
+    for (double s = 0.0; s <= length_m; s += 0.1) {
+      const Eigen::Vector2d in_robot =
+          to_robot * (wall.from_m + (wall.to_m - wall.from_m) * (s / length_m) - at_m);
+      if (in_robot.x() > 0.0 && in_robot.norm() < 30.0) {
+        points.push_back(in_robot);
+      }
+    }
+  }
+  std::sort(points.begin(), points.end(), [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    return std::atan2(a.y(), a.x()) < std::atan2(b.y(), b.x());
+  });
+  // Every point would make thousands; a scan's match keeps about 500.
+  std::vector<Eigen::Vector2d> kept;
+  const std::size_t step = std::max<std::size_t>(1, points.size() / 500);
+  for (std::size_t i = 0; i < points.size(); i += step) {
+    kept.push_back(points[i]);
+  }
+  return kept;
+}
+
+constexpr double kStreetM = 140.0;
+constexpr double kScanStepM = 0.5;
+
+// The true pose at `s` metres along the drive: out east 1 m north of the axis, back west
+// 1 m south of it (the turn itself is left out: the scans of a U-turn add nothing here).
+Pose2 street_truth_at(double s_m) {
+  const auto stamp = static_cast<TimestampNs>(s_m / 1.2 * 1e9);
+  if (s_m <= kStreetM) {
+    return {stamp, s_m, 1.0, 0.0};
+  }
+  return {stamp, 2.0 * kStreetM - s_m, -1.0, std::numbers::pi};
+}
+
+// The way back's odometry: turned by 1 degree about the turn and shifted.
+Pose2 drifted_back(const Pose2& truth) {
+  if (truth.yaw_rad == 0.0) {
+    return truth;
+  }
+  const Eigen::Rotation2Dd turn(radians_from_degrees(1.0));
+  const Eigen::Vector2d about_m(kStreetM, 0.0);
+  const Eigen::Vector2d moved_m = turn * (Eigen::Vector2d(truth.x_m, truth.y_m) - about_m) +
+                                  about_m + Eigen::Vector2d(0.5, 0.3);
+  return {truth.stamp_ns, moved_m.x(), moved_m.y(), truth.yaw_rad + radians_from_degrees(1.0)};
+}
+
+Eigen::Vector3d pose_in(const Pose2& from, const Pose2& to) {
+  const Eigen::Vector2d apart_m =
+      Eigen::Rotation2Dd(-from.yaw_rad) * Eigen::Vector2d(to.x_m - from.x_m, to.y_m - from.y_m);
+  return {apart_m.x(), apart_m.y(), wrap_angle(to.yaw_rad - from.yaw_rad)};
+}
+
+struct StreetDrive {
+  std::vector<LoopClosure> closures;
+  std::vector<Pose2> truths;  // the odometry -> truth of each pose added, by stamp
+  LoopClosureCounters counters;
+  std::size_t submaps = 0;
+  std::size_t memory_bytes = 0;
+};
+
+// Drives out and back, the way back seeing `back_walls`, and collects every closure.
+StreetDrive drive_out_and_back(const LoopClosureConfig& config,
+                               const std::vector<Facade>& back_walls) {
+  const std::vector<Facade> out_walls = street_of(8.0);
+  Arena arena(LoopCloser::arena_bytes(config) + PathSmoother::arena_bytes(PathSmootherConfig{}));
+  LoopCloser closer;
+  closer.init(arena, config);
+  PathSmoother path;
+  path.init(arena, PathSmootherConfig{});
+  StreetDrive closed;
+  std::array<LoopClosure, kMaxClosureCandidates> found{};
+  for (double s = 0.0; s <= 2.0 * kStreetM; s += kScanStepM) {
+    const Pose2 truth = street_truth_at(s);
+    const Pose2 odometry = drifted_back(truth);
+    closed.truths.push_back(truth);
+    path.add(odometry, std::nullopt);
+    if (closer.add_scan(odometry, laser_scan_at(s <= kStreetM ? out_walls : back_walls, truth))) {
+      const std::size_t count = closer.find_closures(path, found);
+      closed.closures.insert(closed.closures.end(), found.begin(),
+                             found.begin() + static_cast<std::ptrdiff_t>(count));
+    }
+  }
+  closed.counters = closer.counters();
+  closed.submaps = closer.submap_count();
+  closed.memory_bytes = closer.memory_bytes();
+  return closed;
+}
+
+Pose2 truth_at_stamp(const StreetDrive& closed, TimestampNs stamp_ns) {
+  for (const Pose2& truth : closed.truths) {
+    if (truth.stamp_ns == stamp_ns) {
+      return truth;
+    }
+  }
+  ADD_FAILURE() << "no pose at " << stamp_ns;
+  return {};
+}
+
+TEST(LoopCloser, TheWayBackIsMatchedToTheWayOutWhereTheyTrulyLie) {
+  const StreetDrive closed = drive_out_and_back(LoopClosureConfig{}, street_of(8.0));
+  std::printf("%llu submaps, %llu matched against an earlier one, %zu closures\n",
+              static_cast<unsigned long long>(closed.counters.submaps),
+              static_cast<unsigned long long>(closed.counters.searches), closed.closures.size());
+  ASSERT_GE(closed.closures.size(), 5u);
+  double worst_m = 0.0;
+  double worst_rad = 0.0;
+  double worst_sigmas = 0.0;
+  for (const LoopClosure& closure : closed.closures) {
+    const Eigen::Vector3d truly = pose_in(truth_at_stamp(closed, closure.earlier.stamp_ns),
+                                          truth_at_stamp(closed, closure.later.stamp_ns));
+    const Eigen::Vector3d odometry = pose_in(closure.earlier, closure.later);
+    // The odometry is off by the drift: the closure is not.
+    EXPECT_GT((odometry - truly).head<2>().norm(), 0.3);
+    worst_m = std::max(worst_m, (closure.measured - truly).head<2>().norm());
+    Eigen::Vector3d error = closure.measured - truly;
+    error.z() = wrap_angle(error.z());
+    worst_sigmas = std::max(worst_sigmas, std::sqrt(error.dot(closure.information * error)));
+    worst_rad = std::max(worst_rad, std::abs(wrap_angle(closure.measured.z() - truly.z())));
+    // Its information: positive definite.
+    EXPECT_GT(closure.information.ldlt().vectorD().minCoeff(), 0.0);
+  }
+  std::printf("worst closure: %.3f m, %.3f deg off the truth; %.2f sigmas by its information\n",
+              worst_m, degrees_from_radians(worst_rad), worst_sigmas);
+  // Within the wall's tolerance, and where its information says it is sure, within it.
+  EXPECT_LT(worst_m, 0.2);
+  EXPECT_LT(worst_sigmas, 3.0);
+  EXPECT_LT(degrees_from_radians(worst_rad), 0.2);
+}
+
+TEST(LoopCloser, AnotherStreetIsNotTakenForTheOneSeenBefore) {
+  // The way back sees other buildings where the way out's were: no closure.
+  std::vector<Facade> other = street_of(8.0);
+  for (Facade& wall : other) {
+    wall.from_m.x() = 160.0 - wall.from_m.x() * 0.83;
+    wall.to_m.x() = 160.0 - wall.to_m.x() * 0.83;
+  }
+  LoopClosureConfig config;
+  config.max_candidates = 1;  // each of the way back's submaps against the nearest
+  const StreetDrive closed = drive_out_and_back(config, other);
+  EXPECT_GT(closed.counters.searches, 0u);
+  EXPECT_EQ(closed.closures.size(), 0u);
+  EXPECT_EQ(closed.counters.low_score + closed.counters.off_window, closed.counters.searches);
+}
+
+TEST(LoopCloser, ARouteOfAnyLengthKeepsItsSubmapsInTheirCapacity) {
+  LoopClosureConfig config;
+  config.max_submaps = 8;
+  const StreetDrive closed = drive_out_and_back(config, street_of(8.0));
+  EXPECT_GE(closed.counters.submaps, 25u);  // 280 m in 10 m submaps
+  EXPECT_LE(closed.submaps, 8u);
+  EXPECT_GT(closed.counters.thinnings, 0u);
+  EXPECT_LE(closed.memory_bytes, LoopCloser::arena_bytes(config));
+}
+
+TEST(LoopCloser, BadConfigurationsAreNamed) {
+  const auto problem = [](auto change) {
+    LoopClosureConfig config;
+    change(config);
+    return validate(config);
+  };
+  EXPECT_EQ(validate(LoopClosureConfig{}), "");
+  EXPECT_NE(problem([](LoopClosureConfig& c) { c.cell_m = 0.0; }).find("cell_m"),
+            std::string::npos);
+  EXPECT_NE(problem([](LoopClosureConfig& c) { c.max_candidates = 5; }).find("max_candidates"),
+            std::string::npos);
+  EXPECT_NE(problem([](LoopClosureConfig& c) { c.min_score = 1.5; }).find("min_score"),
+            std::string::npos);
+  EXPECT_NE(problem([](LoopClosureConfig& c) { c.max_range_m = 5000.0; }).find("30000 cells"),
+            std::string::npos);
+  EXPECT_EQ(problem([](LoopClosureConfig& c) {
+              c.enabled = false;
+              c.cell_m = 0.0;
+            }),
+            "");
+}
+
+}  // namespace
+}  // namespace blockmap::localize
