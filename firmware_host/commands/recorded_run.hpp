@@ -22,10 +22,13 @@ namespace blockmap::cli {
 // The recorded devices, each read as far as its next message.
 class RecordedRun {
  public:
+  // `gps_optional`: a robot without a receiver; a missing gps.nmea reads as no fix.
   RecordedRun(const std::filesystem::path& dir, const hal::devices::SegwayBaseConfig& base_config,
-              const std::vector<hal::config::LaserSpec>& lasers)
+              const std::vector<hal::config::LaserSpec>& lasers, bool gps_optional = false)
       : bus_((dir / "rmp.candump").string()),
-        nmea_((dir / "gps.nmea").string()),
+        nmea_(gps_optional && !std::filesystem::exists(dir / "gps.nmea")
+                  ? std::string("/dev/null")
+                  : (dir / "gps.nmea").string()),
         base_(bus_, odometry_, imu_, base_config),
         gps_(nmea_, fixes_, hal::devices::GpsReceiverConfig{}) {
     static_cast<void>(base_.install_filters());

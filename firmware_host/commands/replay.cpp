@@ -6,7 +6,9 @@
 // without it the smoothed trajectory to stdout. Laser logs are read when robot.toml names the
 // lasers.
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <cstdint>
+#include <numbers>
 #include <cstdio>
 #include <filesystem>
 #include <limits>
@@ -42,9 +44,27 @@ struct ReplayOptions {
   std::string dir;
   MappingOptions mapping;  // out, config, udp, budget
   std::string origin;      // "LAT,LON,H"; empty: the first good fix
+  std::string start_pose;  // "X,Y,YAW_DEG" in the local frame: a robot without a receiver
   std::uint64_t seed = 1;
   std::size_t particles = pipeline::MapperConfig{}.localizer.filter.particle_count;
 };
+
+// "X,Y,YAW_DEG": three finite numbers.
+std::optional<localize::Pose2> parse_start_pose(const std::string& text) {
+  double values[3] = {};
+  std::istringstream in(text);
+  for (int i = 0; i < 3; ++i) {
+    char comma = ',';
+    if ((i > 0 && !(in >> comma)) || comma != ',' || !(in >> values[i]) ||
+        !std::isfinite(values[i])) {
+      return std::nullopt;
+    }
+  }
+  if (!(in >> std::ws).eof()) {
+    return std::nullopt;
+  }
+  return localize::Pose2{0, values[0], values[1], values[2] * std::numbers::pi / 180.0};
+}
 
 // Localization only: no lasers, and the map's capacities at their smallest.
 void shrink_to_localization(pipeline::MapperConfig& config) {
@@ -179,11 +199,22 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
   } else {
     fixes.emplace();
   }
+  if (!options.start_pose.empty()) {
+    const std::optional<localize::Pose2> start = parse_start_pose(options.start_pose);
+    if (!start || options.origin.empty()) {
+      err << "blockmap: replay: --start-pose takes X,Y,YAW_DEG (metres east and north of "
+             "--origin, which it needs, and degrees from east)\n";
+      return kExitUsage;
+    }
+    config.localizer.start_at_known_pose = true;
+    config.localizer.start_pose = *start;
+  }
   if (const std::string problem = pipeline::validate(config); !problem.empty()) {
     err << "blockmap: replay: " << problem << '\n';
     return kExitUsage;
   }
-  auto run = std::make_unique<RecordedRun>(dir, base_config, robot.lasers);
+  auto run = std::make_unique<RecordedRun>(dir, base_config, robot.lasers,
+                                           config.localizer.start_at_known_pose);
   if (const std::string problem = run->open_error(); !problem.empty()) {
     err << "blockmap: replay: " << problem << '\n';
     return kExitFailure;
@@ -282,6 +313,9 @@ Command add_replay_command(CLI::App& app) {
                     "localize only: write trajectory.csv, read no laser log");
   command->add_option("--origin", options->origin,
                       "the local frame's origin as LAT,LON,HEIGHT (default: the first good fix)");
+  command->add_option("--start-pose", options->start_pose,
+                      "X,Y,YAW_DEG: a robot without a receiver starts here in the local frame of "
+                      "--origin (gps.nmea may then be missing)");
   command->add_option("--seed", options->seed, "the particle filter's seed")->capture_default_str();
   command->add_option("--particles", options->particles, "the particle filter's particle count")
       ->check(CLI::Range(std::size_t{2}, std::size_t{1} << 24))

@@ -79,6 +79,11 @@ void read_loop_closure_table(TableReader& t, localize::LoopClosureConfig& l) {
   l.max_candidates = t.capacity_or("max_candidates", l.max_candidates);
   l.search_radius_m = t.positive_or("search_radius_m", l.search_radius_m);
   l.search_yaw_deg = t.non_negative_or("search_yaw_deg", l.search_yaw_deg);
+  // Without fixes the window grows with the path driven between the two passes.
+  l.search_radius_per_m = t.non_negative_or("search_radius_per_m", l.search_radius_per_m);
+  l.search_yaw_deg_per_m = t.non_negative_or("search_yaw_deg_per_m", l.search_yaw_deg_per_m);
+  l.max_search_radius_m = t.positive_or("max_search_radius_m", l.max_search_radius_m);
+  l.max_search_yaw_deg = t.positive_or("max_search_yaw_deg", l.max_search_yaw_deg);
   l.min_score = t.positive_or("min_score", l.min_score);
   l.point_sigma_m = t.positive_or("point_sigma_m", l.point_sigma_m);
   l.floor_sigma_m = t.positive_or("floor_sigma_m", l.floor_sigma_m);

@@ -99,6 +99,11 @@ void Localizer::on_base(const msg::OdometrySample& odometry, const msg::ImuSampl
   have_base_ = true;
   last_base_ns_ = stamp_ns;
   last_fore_aft_m_ = odometry.fore_aft_distance_m;
+  if (!filter_.started() && config_.start_at_known_pose) {
+    Pose2 start = config_.start_pose;
+    start.stamp_ns = stamp_ns;
+    filter_.start_at_pose(start, config_.start_position_sigma_m, config_.start_yaw_sigma_rad);
+  }
   filter_.predict(stamp_ns, distance_m, imu.yaw_rate_radps);
   record_if_stepped();
   const BaseMotion motion{stamp_ns,  distance_m, imu.yaw_rate_radps,

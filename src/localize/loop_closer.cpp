@@ -21,6 +21,7 @@ constexpr std::uint32_t kIterations = 5;
 // pull: enough to keep a bare street's length where the search put it.
 constexpr double kHoldPerPoint = 0.01;
 constexpr double kScoreGainPerM = 0.1;
+constexpr double kMaxShifts = 16.0;
 
 std::int64_t cell_of(double coordinate_m, double inverse_cell_m) noexcept {
   return static_cast<std::int64_t>(std::floor(coordinate_m * inverse_cell_m));
@@ -69,6 +70,12 @@ std::string validate(const LoopClosureConfig& config) {
       config.search_yaw_deg > 45.0) {
     return "loop_closure: candidate_distance_m and search_radius_m must be positive, "
            "min_travel_apart_m not negative, search_yaw_deg 0 to 45";
+  }
+  if (!(config.search_radius_per_m >= 0.0) || !(config.search_yaw_deg_per_m >= 0.0) ||
+      !(config.max_search_radius_m >= config.search_radius_m) ||
+      !(config.max_search_yaw_deg >= config.search_yaw_deg) || config.max_search_yaw_deg > 45.0) {
+    return "loop_closure: search_radius_per_m and search_yaw_deg_per_m must not be negative, "
+           "max_search_radius_m and max_search_yaw_deg (at most 45) not below the fixed ones";
   }
   if (!(config.min_score > 0.0 && config.min_score <= 1.0) || !(config.point_sigma_m > 0.0) ||
       !(config.floor_sigma_m > 0.0) || !(config.floor_sigma_deg > 0.0)) {
@@ -309,7 +316,8 @@ std::size_t LoopCloser::find_closures(
   std::size_t count = 0;
   for (std::size_t k = 0; k < nearest_count; ++k) {
     const Submap& target = submaps_[nearest[k].index];
-    if (match(target, query, nearest[k].guess, found[count])) {
+    const Window window = window_between(target, query, path.counters().fixes > 0);
+    if (match(target, query, nearest[k].guess, window, found[count])) {
       ++count;
     }
   }
@@ -362,15 +370,34 @@ double LoopCloser::value(const Level& level, std::int64_t x, std::int64_t y) con
   return level.cells[static_cast<std::size_t>(y * level.across + x)];
 }
 
-Eigen::Vector3d LoopCloser::coarse_search(const Eigen::Vector3d& guess) const noexcept {
+LoopCloser::Window LoopCloser::window_between(const Submap& target, const Submap& query,
+                                              bool placed_by_fixes) const noexcept {
+  // With fixes the receiver bounds how far apart two passes can be drawn, whatever was
+  // driven between them; without, the odometry's drift grows with it.
+  const double apart_m = placed_by_fixes ? 0.0 : std::max(0.0, query.from_m - target.to_m);
+  Window window;
+  window.radius_m = std::min(config_.search_radius_m + config_.search_radius_per_m * apart_m,
+                             config_.max_search_radius_m);
+  window.yaw_rad = radians_from_degrees(std::min(
+      config_.search_yaw_deg + config_.search_yaw_deg_per_m * apart_m, config_.max_search_yaw_deg));
+  // The search runs on the finest level that spans the window in kMaxShifts half-cells
+  // either way: a wider window on a coarser level, at about the same cost.
+  while (window.level + 1 < levels_.size() &&
+         window.radius_m > kMaxShifts * 0.5 * levels_[window.level].cell_m) {
+    ++window.level;
+  }
+  return window;
+}
+
+Eigen::Vector3d LoopCloser::coarse_search(const Eigen::Vector3d& guess,
+                                          const Window& window) const noexcept {
   // Every pose of the window on the coarsest level, by the count of points on its cells.
-  const Level& coarse = levels_.back();
+  const Level& coarse = levels_[window.level];
   const double inverse_cell_m = 1.0 / coarse.cell_m;
   const double centre_m = 0.5 * static_cast<double>(coarse.across) * coarse.cell_m;
   const double step_m = coarse.cell_m / 2.0;
-  const auto shifts = static_cast<int>(std::ceil(config_.search_radius_m / step_m));
-  const auto turns =
-      static_cast<int>(std::ceil(radians_from_degrees(config_.search_yaw_deg) / kYawStepRad));
+  const auto shifts = static_cast<int>(std::ceil(window.radius_m / step_m));
+  const auto turns = static_cast<int>(std::ceil(window.yaw_rad / kYawStepRad));
   Eigen::Vector3d best = guess;
   double best_count = -1.0;
   for (int turn = -turns; turn <= turns; ++turn) {
@@ -467,7 +494,7 @@ double LoopCloser::score(const Eigen::Vector3d& pose) const noexcept {
 }
 
 bool LoopCloser::match(const Submap& target, const Submap& query, const Eigen::Vector3d& guess,
-                       LoopClosure& closure) noexcept {
+                       const Window& window, LoopClosure& closure) noexcept {
   ++counters_.searches;
   rasterize(target);
   // 2-3. The window's best on the coarse level, then Gauss-Newton coarse to fine.
@@ -475,17 +502,17 @@ bool LoopCloser::match(const Submap& target, const Submap& query, const Eigen::V
   //    for each metre it lies from it: along a street whose facades repeat, another bay a
   //    few metres on scores nearly as well, and the receiver's slow error is seldom that
   //    large between passes.
-  const auto refined = [this](const Eigen::Vector3d& start) {
+  const auto refined = [this, &window](const Eigen::Vector3d& start) {
     Match match;
     match.pose = start;
-    for (std::size_t l = levels_.size(); l-- > 0;) {
+    for (std::size_t l = window.level + 1; l-- > 0;) {
       refine(levels_[l], match.pose, match);
     }
     match.score = score(match.pose);
     return match;
   };
   Match found = refined(guess);
-  const Match searched = refined(coarse_search(guess));
+  const Match searched = refined(coarse_search(guess, window));
   if (searched.score - found.score >
       kScoreGainPerM * (searched.pose.head<2>() - found.pose.head<2>()).norm()) {
     found = searched;
@@ -495,10 +522,9 @@ bool LoopCloser::match(const Submap& target, const Submap& query, const Eigen::V
     ++counters_.low_score;
     return false;
   }
-  const double slack_m = levels_.back().cell_m;
-  if ((found.pose.head<2>() - guess.head<2>()).norm() > config_.search_radius_m + slack_m ||
-      std::abs(wrap_angle(found.pose.z() - guess.z())) >
-          radians_from_degrees(config_.search_yaw_deg) + kYawStepRad) {
+  const double slack_m = levels_[window.level].cell_m;
+  if ((found.pose.head<2>() - guess.head<2>()).norm() > window.radius_m + slack_m ||
+      std::abs(wrap_angle(found.pose.z() - guess.z())) > window.yaw_rad + kYawStepRad) {
     ++counters_.off_window;
     return false;
   }
@@ -517,6 +543,8 @@ bool LoopCloser::match(const Submap& target, const Submap& query, const Eigen::V
   closure.earlier = target.origin;
   closure.later = query.origin;
   closure.measured = found.pose;
+  closure.window_m = window.radius_m;
+  closure.window_rad = window.yaw_rad;
   closure.information = covariance.ldlt().solve(Eigen::Matrix3d::Identity());
   if (!closure.information.allFinite()) {
     return false;

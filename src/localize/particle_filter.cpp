@@ -387,6 +387,35 @@ void ParticleFilter::start_at(const GpsObservation& fix, double sigma_m,
   push_history(stamp_ns);
 }
 
+void ParticleFilter::start_at_pose(const Pose2& pose, double position_sigma_m,
+                                   double yaw_sigma_rad) noexcept {
+  // Nothing is known of the receiver's error yet: its stationary variances, and no estimate.
+  const FixError error = fix_error(GpsObservation{});
+  gps_covariance_ = {error.slow_variance_m2, 0.0, error.fast_variance_m2};
+  for (std::size_t i = 0; i < count_; ++i) {
+    x_m_[i] = pose.x_m + position_sigma_m * gaussian();
+    y_m_[i] = pose.y_m + position_sigma_m * gaussian();
+    yaw_rad_[i] = wrap_angle(pose.yaw_rad + yaw_sigma_rad * gaussian());
+    cos_yaw_[i] = std::cos(yaw_rad_[i]);
+    sin_yaw_[i] = std::sin(yaw_rad_[i]);
+    weight_[i] = 1.0;
+    gps_slow_x_m_[i] = 0.0;
+    gps_slow_y_m_[i] = 0.0;
+    gps_fast_x_m_[i] = 0.0;
+    gps_fast_y_m_[i] = 0.0;
+    scale_[i] = 1.0 + config_.initial_scale_sigma * gaussian();
+    yaw_rate_bias_radps_[i] = config_.initial_yaw_rate_bias_sigma_radps * gaussian();
+    ancestor_[i] = static_cast<std::uint32_t>(i);
+  }
+  normalize_weights();
+  history_size_ = 0;
+  resampled_since_push_ = false;
+  started_ = true;
+  rejected_in_a_row_ = 0;
+  gps_error_stamp_ns_ = pose.stamp_ns;
+  push_history(std::max(pose.stamp_ns, last_stamp_ns_));
+}
+
 void ParticleFilter::weigh(const GpsObservation& fix, const FixError& error) noexcept {
   // The paper's observation model, a Gaussian of the distance to the fix, here from where
   // each particle expects the fix: its position plus its estimate of the receiver's error.

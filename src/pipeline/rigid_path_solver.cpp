@@ -118,7 +118,7 @@ bool RigidPathSolver::take_solved() noexcept {
 }
 
 void RigidPathSolver::solve_final() noexcept {
-  if (path_.counters().fixes > 0) {
+  if (placed()) {
     path_.solve();
   }
 }
@@ -147,11 +147,12 @@ map::PlaneMove RigidPathSolver::move_of(const msg::PlanePatch& plane,
   // more: they put more points on it) while it was being seen (a pass behind the building, as
   // near, did not draw it), averaged: a turn about the vertical and where its centroid goes.
   constexpr double kNearM = 2.0;
-  // Without fixes nothing says where the path lies but its own odometry, which the scans
-  // were drawn with already (a log with no GPS): the planes stay.
+  // Without fixes or loop closures nothing says where the path lies but its own odometry,
+  // which the scans were drawn with already (a log with no GPS and no revisit): the planes
+  // stay.
   // A plane without seen spans comes from a snapshot: the run that saved it placed it.
   const std::size_t keyframes = path_.keyframe_count();
-  if (path_.counters().fixes == 0 || path_.counters().solves == 0 || keyframes < 2 ||
+  if (!placed() || path_.counters().solves == 0 || keyframes < 2 ||
       seen.count == 0) {
     return {};
   }

@@ -360,6 +360,41 @@ TEST(ImportCommand, TheRealUalScansMapWallsAsVerticalPlanes) {
   fs::remove_all(folder);
 }
 
+// Issue 54's real data: the UAL loop with its laser and odometry alone (no receiver). The car
+// starts where it is told; the scan matcher's path drifts by metres over the 524 m loop, and
+// where the car comes back to its start the loop closer matches the last submaps to the first
+// ones in a window grown with the path between them.
+TEST(ImportCommand, TheRealUalLoopIsClosedWithoutGps) {
+  BLOCKMAP_LONG_TEST();
+  const fs::path folder = scratch("ual_no_gps");
+  if (!ual_scans_present()) {
+    GTEST_SKIP() << "the shared data collection is not beside the checkout";
+  }
+  Result result = import_ual_scans(folder / "logs");
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  fs::remove(folder / "logs" / "gps.nmea");
+  const fs::path config = folder / "ual_rigid.toml";
+  std::ofstream(config) << "[window]\ntiles_across = 11\n[projection]\nmax_range_m = 60.0\n";
+  result = run_cli({"replay", (folder / "logs").string(), "--config", config.string(), "--out",
+                    (folder / "out").string(), "--origin", kOrigin, "--particles", "1000",
+                    "--start-pose", "0,0,0"});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  EXPECT_NE(result.err.find(" 0 fixes used"), std::string::npos) << result.err;
+  unsigned long long submaps = 0;
+  unsigned long long closures = 0;
+  const std::size_t at = result.err.find("loop closing: ");
+  ASSERT_NE(at, std::string::npos) << result.err;
+  ASSERT_EQ(std::sscanf(result.err.c_str() + at, "loop closing: %llu submaps", &submaps), 1);
+  const std::size_t closures_at = result.err.find(" closures (", at);
+  ASSERT_NE(closures_at, std::string::npos);
+  const std::size_t number_at = result.err.rfind(", ", closures_at);
+  ASSERT_EQ(std::sscanf(result.err.c_str() + number_at + 2, "%llu", &closures), 1);
+  std::printf("%llu submaps, %llu closures\n", submaps, closures);
+  EXPECT_GE(submaps, 50u);
+  EXPECT_GE(closures, 1u);
+  fs::remove_all(folder);
+}
+
 // Issue 8's real data: the UAL loop's block comes out as one closed footprint. The car drove
 // once around it; where its laser saw through (config/ual_loop.toml's [free_space]) rings the
 // block, whose steps and tree-hidden ends no wall shows (docs/buildings.md).

@@ -211,6 +211,50 @@ TEST_F(ReplayMapping, ADamagedLaserLogIsMappedUpToTheDamageAndReported) {
   fs::remove_all(out);
 }
 
+TEST_F(ReplayMapping, ARobotWithoutAReceiverStartsWhereItIsToldAndMaps) {
+  // The same logs without gps.nmea: the filter starts at --start-pose (the truth's first
+  // pose) and dead-reckons; the scans are matched and mapped all the same.
+  const fs::path logs = scratch("replay_no_gps");
+  fs::remove_all(logs);
+  fs::copy(folder_, logs);
+  fs::remove(logs / "gps.nmea");
+  const nlohmann::json truth = nlohmann::json::parse(read_file(logs / "truth.json"));
+  const nlohmann::json& first = truth["trajectory"][0];
+  const nlohmann::json& last = truth["trajectory"][truth["trajectory"].size() - 1];
+  const nlohmann::json& o = truth["origin"];
+  const std::string origin = std::to_string(o["latitude_deg"].get<double>()) + "," +
+                             std::to_string(o["longitude_deg"].get<double>()) + "," +
+                             std::to_string(o["height_m"].get<double>());
+  const std::string start = std::to_string(first["x_m"].get<double>()) + "," +
+                            std::to_string(first["y_m"].get<double>()) + "," +
+                            std::to_string(first["yaw_rad"].get<double>() * 180.0 / std::numbers::pi);
+  const fs::path out = logs.string() + "_out";
+  const Result result = run_cli({"replay", logs.string(), "--out", out.string(), "--particles",
+                                 "500", "--origin", origin, "--start-pose", start});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  EXPECT_NE(result.err.find(" 0 fixes used"), std::string::npos) << result.err;
+  std::string header;
+  const std::vector<Row> rows = trajectory_rows(read_file(out / "trajectory.csv"), header);
+  ASSERT_GT(rows.size(), 50u);
+  EXPECT_LT(std::hypot(rows.front().x_m - first["x_m"].get<double>(),
+                       rows.front().y_m - first["y_m"].get<double>()),
+            0.5);
+  // 25 s of dead reckoning from a known start: within a couple of metres at the end.
+  EXPECT_LT(std::hypot(rows.back().x_m - last["x_m"].get<double>(),
+                       rows.back().y_m - last["y_m"].get<double>()),
+            2.0);
+  const nlohmann::json planes = nlohmann::json::parse(read_file(out / "planes.json"));
+  EXPECT_GT(planes["planes"].size(), 3u);
+  // Without --origin there is no frame to start in: refused with one line.
+  const Result unplaced =
+      run_cli({"replay", logs.string(), "--out", out.string(), "--start-pose", start});
+  EXPECT_EQ(unplaced.status, kExitUsage);
+  EXPECT_NE(unplaced.err.find("--start-pose takes X,Y,YAW_DEG"), std::string::npos)
+      << unplaced.err;
+  fs::remove_all(logs);
+  fs::remove_all(out);
+}
+
 TEST(ReplayCommandInput, BadInputGetsOneClearLine) {
   const fs::path folder =
       fs::temp_directory_path() / ("blockmap_replay_bad_" + std::to_string(::getpid()));

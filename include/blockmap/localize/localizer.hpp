@@ -76,6 +76,12 @@ struct LocalizerConfig {
   double map_pose_start_heading_spread_rad = 0.26;  // 15 deg
   // Map poses kept, one per base sample: how far back map_pose_at() reaches (10 s at 100 Hz).
   std::size_t map_pose_capacity = 1024;
+  // A robot without a receiver starts at a pose known otherwise (replay --start-pose): the
+  // filter starts there at the first odometry, not at a first fix.
+  bool start_at_known_pose = false;
+  Pose2 start_pose;  // its stamp is the first odometry's
+  double start_position_sigma_m = 0.05;
+  double start_yaw_sigma_rad = 0.005;
   // 0: the map pose is drawn toward the estimate as it is now. L > 0: the map pose runs L
   // seconds behind the newest base sample and is drawn toward the smoothed path at its own
   // time (the pose the fixes of the following L seconds agree on), every history step. The

@@ -23,7 +23,8 @@
 //     largest of the cells under them;
 //  2. the finished submap's cells searched exhaustively on the coarse level, over
 //     search_radius_m and search_yaw_deg about where the solved path puts them (the
-//     receiver's slow error, both passes);
+//     receiver's slow error, both passes; without fixes, the odometry's drift over the path
+//     between the two, growing with it);
 //  3. Gauss-Newton from the best of them, coarse to fine;
 //  4. verification: the share of its cells that land on the earlier ones (min_score), and
 //     the match still inside the window;
@@ -60,12 +61,18 @@ struct LoopClosureConfig {
   std::size_t max_cells_per_submap = 2048;
   std::size_t max_query_points = 512;
   std::uint32_t grid_across = 768;  // the scratch grid's side in cells (76.8 m at 0.1 m)
-  std::uint32_t levels = 3;         // 0.1, 0.2, 0.4 m: the search runs on the coarsest
+  std::uint32_t levels = 4;  // 0.1 to 0.8 m: the search on the finest that spans its window
   double candidate_distance_m = 15.0;
   double min_travel_apart_m = 100.0;
   std::size_t max_candidates = 4;  // the nearest earlier submaps tried per finished one
   double search_radius_m = 2.5;
   double search_yaw_deg = 3.0;
+  // A path without fixes drifts with the distance driven between the two passes: the window
+  // grows by these per metre of path between them, up to the max_ ones.
+  double search_radius_per_m = 0.01;
+  double search_yaw_deg_per_m = 0.01;
+  double max_search_radius_m = 8.0;
+  double max_search_yaw_deg = 8.0;
   double min_score = 0.6;
   // A cell's offset across its surface, as one of many neighbours (they are not independent
   // measurements), and the least sigmas a closure has.
@@ -143,12 +150,21 @@ class LoopCloser {
 
   void rasterize(const Submap& target) noexcept;
   void load_query(const Submap& query) noexcept;
-  [[nodiscard]] Eigen::Vector3d coarse_search(const Eigen::Vector3d& guess) const noexcept;
+  // The search window about a guess: its reach (m) and turn (rad).
+  struct Window {
+    double radius_m = 0.0;
+    double yaw_rad = 0.0;
+    std::size_t level = 0;  // the level searched, and refined from
+  };
+  [[nodiscard]] Window window_between(const Submap& target, const Submap& query,
+                                      bool placed_by_fixes) const noexcept;
+  [[nodiscard]] Eigen::Vector3d coarse_search(const Eigen::Vector3d& guess,
+                                              const Window& window) const noexcept;
   void refine(const Level& level, const Eigen::Vector3d& start, Match& match) const noexcept;
   [[nodiscard]] double score(const Eigen::Vector3d& pose) const noexcept;
   [[nodiscard]] double value(const Level& level, std::int64_t x, std::int64_t y) const noexcept;
   [[nodiscard]] bool match(const Submap& target, const Submap& query, const Eigen::Vector3d& guess,
-                           LoopClosure& closure) noexcept;
+                           const Window& window, LoopClosure& closure) noexcept;
 
   LoopClosureConfig config_;
   std::span<Cell> cells_;

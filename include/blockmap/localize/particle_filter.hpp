@@ -105,6 +105,10 @@ class ParticleFilter {
   void predict(TimestampNs stamp_ns, double distance_m, double yaw_rate_radps) noexcept;
   // A GPS fix. Fixes must not be older than the last odometry (the pipeline orders them).
   GpsOutcome update(const GpsObservation& fix) noexcept;
+  // A start without a fix, at a pose known otherwise (a robot without a receiver that starts
+  // where its map says): the particles drawn around it by these sigmas, the odometry's scale
+  // and gyroscope bias as at any start. Fixes that come later weigh them as usual.
+  void start_at_pose(const Pose2& pose, double position_sigma_m, double yaw_sigma_rad) noexcept;
 
   // The weighted mean of the particles now (odometry not yet applied to them included).
   [[nodiscard]] Pose2 estimate() const noexcept;

@@ -79,6 +79,10 @@ class RigidPathSolver final : public map::PlaneView {
   }
 
  private:
+  // Whether anything but the odometry says where the path lies: fixes or loop closures.
+  [[nodiscard]] bool placed() const noexcept {
+    return path_.counters().fixes > 0 || path_.closure_count() > 0;
+  }
   // The first keyframe stamped at or after `stamp_ns` (keyframe_count() when none is).
   [[nodiscard]] std::size_t first_keyframe_from(TimestampNs stamp_ns) const noexcept;
   // The keyframe nearest `point_m` (x, y) among those from `from_ns` to `to_ns` that `seen`
