@@ -543,8 +543,6 @@ bool LoopCloser::match(const Submap& target, const Submap& query, const Eigen::V
   closure.earlier = target.origin;
   closure.later = query.origin;
   closure.measured = found.pose;
-  closure.window_m = window.radius_m;
-  closure.window_rad = window.yaw_rad;
   closure.information = covariance.ldlt().solve(Eigen::Matrix3d::Identity());
   if (!closure.information.allFinite()) {
     return false;

@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <cmath>
 
-#include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 
 #include "blockmap/core/angles.hpp"
@@ -98,14 +97,8 @@ void PathSmoother::linearize_closure(Closure& c) const noexcept {
   jb.topLeftCorner<2, 2>() = to_a;
   jb.block<2, 1>(0, 2) = to_a * perpendicular(b_lever_m);
   jb(2, 2) = 1.0;
-  // Huber on the Mahalanobis distance, the window's spread added to the closure's: beyond
-  // closure_huber_sigmas a constant pull.
-  Eigen::Matrix3d spread = c.closure.information.ldlt().solve(Eigen::Matrix3d::Identity());
-  spread.diagonal() += Eigen::Vector3d(c.closure.window_m * c.closure.window_m,
-                                       c.closure.window_m * c.closure.window_m,
-                                       c.closure.window_rad * c.closure.window_rad);
-  const double distance =
-      std::sqrt(std::max(0.0, residual.dot(spread.ldlt().solve(residual))));
+  // Huber on the Mahalanobis distance: beyond closure_huber_sigmas a constant pull.
+  const double distance = std::sqrt(std::max(0.0, residual.dot(c.closure.information * residual)));
   const double huber =
       distance <= config_.closure_huber_sigmas ? 1.0 : config_.closure_huber_sigmas / distance;
   Eigen::Map<RowMatrix3>(c.weight) = huber * c.closure.information;

@@ -94,8 +94,7 @@ struct PathSmootherConfig {
   // Conjugate-gradient steps per Gauss-Newton step when there are ties.
   std::uint32_t cg_iterations = 64;
   // Loop closures: the most kept (when full, every other one of the older half goes), and
-  // beyond how many sigmas (Mahalanobis, of the closure and its search window together) one
-  // pulls no harder.
+  // beyond how many sigmas (Mahalanobis) one pulls no harder.
   std::size_t max_closures = 256;
   double closure_huber_sigmas = 3.0;
 };
@@ -116,11 +115,6 @@ struct LoopClosure {
   Pose2 later;
   Eigen::Vector3d measured = Eigen::Vector3d::Zero();
   Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
-  // How far the path as it was may have lain from it: the search window it was found in.
-  // Its robust loss counts sigmas of the two together, so that a closure that corrects a
-  // drift as large as the window pulls with its full weight.
-  double window_m = 0.0;
-  double window_rad = 0.0;
 };
 
 // Empty when usable, otherwise what is wrong.
