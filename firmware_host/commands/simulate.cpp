@@ -5,10 +5,12 @@
 // perfect localisation would give) as a PLY file, for `blockmap planes` and other tools.
 #include <CLI/CLI.hpp>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <ostream>
 #include <string>
+#include <vector>
 
 #include "blockmap/hal/cloud/point_cloud_file.hpp"
 #include "blockmap/hal/config/config_error.hpp"
@@ -30,6 +32,8 @@ struct SimulateOptions {
   double duration_s = 0.0;
   std::string out;
   std::string cloud;
+  std::vector<double> gps_silent_s;  // FROM,TO: the receiver sends nothing between
+  std::vector<double> gps_jumps;     // FRACTION,METRES: fixes off by a multipath jump
 };
 
 // The recorder's events, and the beams also to the truth cloud.
@@ -71,6 +75,14 @@ int simulate(const SimulateOptions& options, std::ostream& err) {
   hal::sim::SimOptions sim_options;
   sim_options.seed = options.seed;
   sim_options.max_duration_s = options.duration_s;
+  if (!options.gps_silent_s.empty()) {
+    sim_options.gps_silent_from_s = options.gps_silent_s[0];
+    sim_options.gps_silent_to_s = options.gps_silent_s[1];
+  }
+  if (!options.gps_jumps.empty()) {
+    sim_options.gps_jump_fraction = options.gps_jumps[0];
+    sim_options.gps_jump_m = options.gps_jumps[1];
+  }
 
   const auto wall_start = std::chrono::steady_clock::now();
   hal::sim::Simulation simulation(world, robot, sim_options);
@@ -95,8 +107,8 @@ int simulate(const SimulateOptions& options, std::ostream& err) {
     err << "laser " << robot.lasers[i].name << ' ' << stats.scans_sent[i] << " scans ("
         << stats.beams_returned[i] << " returns), ";
   }
-  err << stats.gps_epochs << " GPS epochs (" << stats.gps_epochs_without_fix << " without fix), "
-      << stats.rmp_cycles << " RMP cycles -> " << options.out << '\n';
+  err << stats.gps_epochs << " GPS epochs (" << stats.gps_epochs_without_fix << " without fix, "
+      << stats.gps_epochs_silent << " not sent), " << stats.rmp_cycles << " RMP cycles -> " << options.out << '\n';
   return kExitOk;
 }
 
@@ -131,7 +143,32 @@ Command add_simulate_command(CLI::App& app) {
   command->add_option("--out", options->out, "the folder to write the logs into")->required();
   command->add_option("--cloud", options->cloud,
                       "also write every laser return along the true trajectory as a PLY file");
+  // Faults of the receiver, for testing what the map keeps through them.
+  command
+      ->add_option("--gps-silent", options->gps_silent_s,
+                   "FROM_S,TO_S: the receiver sends nothing between these times of the run")
+      ->expected(2)
+      ->delimiter(',')
+      ->check(CLI::NonNegativeNumber);
+  command
+      ->add_option("--gps-jumps", options->gps_jumps,
+                   "FRACTION,METRES: this share of the fixes off by a multipath jump of this "
+                   "many metres, in a random direction")
+      ->expected(2)
+      ->delimiter(',')
+      ->check(CLI::NonNegativeNumber);
   return {command, [options](std::ostream& /*out*/, std::ostream& err) {
+            if (!options->gps_silent_s.empty() &&
+                !(options->gps_silent_s[1] > options->gps_silent_s[0])) {
+              err << "blockmap: simulate: --gps-silent takes FROM_S,TO_S with TO_S after FROM_S\n";
+              return kExitUsage;
+            }
+            if (!options->gps_jumps.empty() &&
+                !(options->gps_jumps[0] <= 1.0 && std::isfinite(options->gps_jumps[1]))) {
+              err << "blockmap: simulate: --gps-jumps takes FRACTION,METRES with FRACTION at "
+                     "most 1\n";
+              return kExitUsage;
+            }
             try {
               return simulate(*options, err);
             } catch (const hal::ConfigError& error) {

@@ -97,6 +97,12 @@ class SimGps {
     silent_from_ns_ = from_ns;
     silent_to_ns_ = to_ns;
   }
+  // This share of the fixes is off by `jump_m` in a random direction (a reflected signal
+  // taken for the direct one), drawn apart from the rest of the run's randomness.
+  void set_jumps(double fraction, double jump_m) noexcept {
+    jump_fraction_ = fraction;
+    jump_m_ = jump_m;
+  }
   [[nodiscard]] std::size_t memory_bytes() const noexcept { return wire_.memory_bytes(); }
 
  private:
@@ -115,12 +121,15 @@ class SimGps {
   LocalEnuFrame frame_;
   std::size_t device_;
   SimRandom random_;
+  SimRandom jumps_random_;  // apart, so that the jumps leave the rest of the run as it was
   SerialWire wire_;
   std::vector<Satellite> satellites_;
   GpsErrorProcess error_;
   std::uint64_t next_epoch_ = 1;
   TimestampNs silent_from_ns_ = 0;
   TimestampNs silent_to_ns_ = 0;
+  double jump_fraction_ = 0.0;
+  double jump_m_ = 0.0;
   std::array<char, protocol::nmea::kMaxSentenceBytes> sentence_{};
 };
 

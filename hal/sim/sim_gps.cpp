@@ -47,6 +47,7 @@ SimGps::SimGps(const config::GpsSpec& spec, const Site& site, std::size_t device
       frame_(site.origin),
       device_(device),
       random_(seed, "gps"),
+      jumps_random_(seed, "gps.jumps"),
       wire_(spec.baud, static_cast<TimestampNs>(spec.read_interval_s * 1e9), 2048),
       error_(spec) {
   // The constellation: uniform in azimuth, uniform in the sine of the elevation above the mask.
@@ -126,6 +127,15 @@ void SimGps::make_epoch(SimContext& context, SimSink& sink, SimStats& stats) {
                          : 99.9;
   // Fewer satellites, worse geometry: the error grows with the HDOP.
   truth.error_m = error_.error_m() * (truth.fix ? truth.hdop / spec_.hdop_open_sky : 1.0);
+  if (jump_fraction_ > 0.0) {
+    // Drawn for every epoch, so that which ones jump does not depend on the fixes.
+    const bool jumps = jumps_random_.uniform(0.0, 1.0) < jump_fraction_;
+    const double direction_rad = jumps_random_.uniform(0.0, 2.0 * std::numbers::pi);
+    if (jumps && truth.fix) {
+      truth.error_m.x() += jump_m_ * std::cos(direction_rad);
+      truth.error_m.y() += jump_m_ * std::sin(direction_rad);
+    }
+  }
 
   msg::GpsFix fix;
   const double utc_s = site_.start_unix_s + t_s;

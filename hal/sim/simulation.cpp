@@ -33,6 +33,7 @@ struct Simulation::Impl {
       gps.set_silence(context.stamp(options.gps_silent_from_s),
                       context.stamp(options.gps_silent_to_s));
     }
+    gps.set_jumps(options.gps_jump_fraction, options.gps_jump_m);
     if (options.max_duration_s > 0.0) {
       context.end_ns = context.stamp(options.max_duration_s);
     }

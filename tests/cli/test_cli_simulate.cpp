@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -15,6 +16,7 @@
 #include "blockmap/hal/geodesy.hpp"
 #include "cli.hpp"
 #include "cli_runner.hpp"
+#include "scratch.hpp"
 
 namespace blockmap::cli {
 namespace {
@@ -24,6 +26,7 @@ namespace fs = std::filesystem;
 using Result = testing::CliResult;
 using testing::read_file;
 using testing::run_cli;
+using blockmap::testing::scratch;
 
 std::vector<nlohmann::json> json_lines(const std::string& text) {
   std::vector<nlohmann::json> lines;
@@ -196,12 +199,54 @@ TEST_F(SimulateCommand, ADamagedByteLogDecodesWhatCameBeforeTheDamageAndFails) {
   EXPECT_GT(json_lines(decoded.out).size(), 100u);
 }
 
+// The receiver's faults for testing what the map keeps through them (issue 54): a silence and
+// multipath jumps change the receiver's output and nothing else of the run.
+TEST(Simulate, ReceiverFaultsChangeTheFixesAndLeaveTheRestOfTheRunAsItWas) {
+  const fs::path plain = scratch("simulate_plain");
+  const fs::path faulty = scratch("simulate_faulty");
+  ASSERT_EQ(run_cli({"simulate", "--world", "usc_block", "--seed", "4", "--duration-s", "20",
+                     "--out", plain.string()})
+                .status,
+            kExitOk);
+  const Result result =
+      run_cli({"simulate", "--world", "usc_block", "--seed", "4", "--duration-s", "20", "--out",
+               faulty.string(), "--gps-silent", "5,10", "--gps-jumps", "0.2,10"});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  EXPECT_NE(result.err.find("20 not sent"), std::string::npos) << result.err;
+  for (const char* name : {"rmp.candump", "laser_horizontal.bytelog", "laser_vertical.bytelog"}) {
+    EXPECT_EQ(read_file(plain / name), read_file(faulty / name)) << name;
+  }
+  EXPECT_NE(read_file(plain / "gps.nmea"), read_file(faulty / "gps.nmea"));
+  // About a fifth of the fixes 10 m off (the receiver's own error is 2 m).
+  std::istringstream truth(read_file(faulty / "truth_gps.csv"));
+  std::string line;
+  std::getline(truth, line);
+  std::size_t fixes = 0;
+  std::size_t jumped = 0;
+  while (std::getline(truth, line)) {
+    double t = 0.0, x = 0.0, y = 0.0, z = 0.0, east = 0.0, north = 0.0;
+    ASSERT_EQ(std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf", &t, &x, &y, &z, &east, &north),
+              6);
+    ++fixes;
+    jumped += std::hypot(east, north) > 6.0 ? 1U : 0U;
+  }
+  EXPECT_EQ(fixes, 80u);
+  EXPECT_GT(jumped, 8u);
+  EXPECT_LT(jumped, 28u);
+  const Result backwards = run_cli({"simulate", "--world", "usc_block", "--out", faulty.string(),
+                                    "--gps-silent", "10,5"});
+  EXPECT_EQ(backwards.status, kExitUsage);
+  EXPECT_NE(backwards.err.find("--gps-silent takes FROM_S,TO_S"), std::string::npos);
+  fs::remove_all(plain);
+  fs::remove_all(faulty);
+}
+
 TEST(Simulate, AnUnknownWorldIsOneLineAndAUsageStatus) {
   const Result result = run_cli({"simulate", "--world", "atlantis", "--out", "/tmp/unused"});
   EXPECT_EQ(result.status, kExitUsage);
   EXPECT_EQ(result.err,
-            "blockmap: no built-in world 'atlantis' (there are benning, partial, usc_block; or "
-            "give a .toml file)\n");
+            "blockmap: no built-in world 'atlantis' (there are benning, partial, skewed_grid, "
+            "triangle, usc_block; or give a .toml file)\n");
 }
 
 }  // namespace

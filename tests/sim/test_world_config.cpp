@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 #include <string>
 
 #include "blockmap/hal/config/config_error.hpp"
@@ -82,6 +83,49 @@ TEST(WorldFiles, TheWorldsTheIssueAsksFor) {
 
   const World partial = load_world("partial");
   EXPECT_EQ(partial.buildings.size(), 6u);
+}
+
+// Issue 54's worlds for the laser SLAM back end: streets that are not axis-aligned, a loop the
+// route closes and a dead end it turns in, and buildings of every shape.
+TEST(WorldFiles, TheLoopClosingWorldsHaveSkewedStreetsLoopsAndDeadEnds) {
+  for (const char* name : {"skewed_grid", "triangle"}) {
+    SCOPED_TRACE(name);
+    const World world = load_world(name);
+    const std::vector<Vec2>& path = world.path.waypoints_m;
+    ASSERT_GE(path.size(), 6u);
+    bool skewed = false;
+    bool dead_end = false;
+    double length_m = 0.0;
+    for (std::size_t i = 1; i < path.size(); ++i) {
+      const Vec2 leg = path[i] - path[i - 1];
+      length_m += leg.norm();
+      // Along neither axis, by more than 5 degrees.
+      const double angle_deg = std::atan2(std::abs(leg.y()), std::abs(leg.x())) * 180.0 / std::numbers::pi;
+      skewed = skewed || (leg.norm() > 20.0 && angle_deg > 5.0 && angle_deg < 85.0);
+      // A long leg driven back along itself after a short turn: a dead end.
+      for (std::size_t j = i + 1; j + 1 < path.size() && j <= i + 3; ++j) {
+        const Vec2 back = path[j + 1] - path[j];
+        dead_end = dead_end || (leg.norm() > 20.0 && back.norm() > 20.0 &&
+                                leg.normalized().dot(back.normalized()) < -0.99);
+      }
+    }
+    EXPECT_TRUE(skewed);
+    EXPECT_TRUE(dead_end);
+    EXPECT_GT(length_m, 350.0);
+    // The route comes back past its start: a loop to close.
+    bool closes = false;
+    double along_m = 0.0;
+    for (std::size_t i = 1; i < path.size(); ++i) {
+      along_m += (path[i] - path[i - 1]).norm();
+      closes = closes || (along_m > 200.0 && (path[i] - path.front()).norm() < 10.0);
+    }
+    EXPECT_TRUE(closes);
+    bool shapes[3] = {false, false, false};
+    for (const Building& building : world.buildings) {
+      shapes[static_cast<int>(building.shape)] = true;
+    }
+    EXPECT_TRUE(shapes[0] && shapes[1] && shapes[2]) << "rect, L and T";
+  }
 }
 
 TEST(WorldFiles, ShapesHaveTheirVertexCountsAndAreas) {

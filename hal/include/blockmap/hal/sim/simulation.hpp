@@ -77,6 +77,10 @@ struct SimOptions {
   // fixes after the silence are those of the same run without it.
   double gps_silent_from_s = 0.0;
   double gps_silent_to_s = 0.0;
+  // This share of the fixes is off by gps_jump_m in a random direction (multipath: a
+  // reflection taken for the direct signal); the rest of the run is as without them.
+  double gps_jump_fraction = 0.0;
+  double gps_jump_m = 0.0;
 };
 
 struct SimStats {
