@@ -8,11 +8,11 @@
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <cstdint>
-#include <numbers>
 #include <cstdio>
 #include <filesystem>
 #include <limits>
 #include <memory>
+#include <numbers>
 #include <optional>
 #include <ostream>
 #include <sstream>

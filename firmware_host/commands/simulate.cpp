@@ -108,7 +108,8 @@ int simulate(const SimulateOptions& options, std::ostream& err) {
         << stats.beams_returned[i] << " returns), ";
   }
   err << stats.gps_epochs << " GPS epochs (" << stats.gps_epochs_without_fix << " without fix, "
-      << stats.gps_epochs_silent << " not sent), " << stats.rmp_cycles << " RMP cycles -> " << options.out << '\n';
+      << stats.gps_epochs_silent << " not sent), " << stats.rmp_cycles << " RMP cycles -> "
+      << options.out << '\n';
   return kExitOk;
 }
 

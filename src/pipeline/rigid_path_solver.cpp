@@ -152,8 +152,7 @@ map::PlaneMove RigidPathSolver::move_of(const msg::PlanePatch& plane,
   // stay.
   // A plane without seen spans comes from a snapshot: the run that saved it placed it.
   const std::size_t keyframes = path_.keyframe_count();
-  if (!placed() || path_.counters().solves == 0 || keyframes < 2 ||
-      seen.count == 0) {
+  if (!placed() || path_.counters().solves == 0 || keyframes < 2 || seen.count == 0) {
     return {};
   }
   Eigen::AlignedBox2d extent;

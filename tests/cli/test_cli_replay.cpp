@@ -225,9 +225,10 @@ TEST_F(ReplayMapping, ARobotWithoutAReceiverStartsWhereItIsToldAndMaps) {
   const std::string origin = std::to_string(o["latitude_deg"].get<double>()) + "," +
                              std::to_string(o["longitude_deg"].get<double>()) + "," +
                              std::to_string(o["height_m"].get<double>());
-  const std::string start = std::to_string(first["x_m"].get<double>()) + "," +
-                            std::to_string(first["y_m"].get<double>()) + "," +
-                            std::to_string(first["yaw_rad"].get<double>() * 180.0 / std::numbers::pi);
+  const std::string start =
+      std::to_string(first["x_m"].get<double>()) + "," +
+      std::to_string(first["y_m"].get<double>()) + "," +
+      std::to_string(first["yaw_rad"].get<double>() * 180.0 / std::numbers::pi);
   const fs::path out = logs.string() + "_out";
   const Result result = run_cli({"replay", logs.string(), "--out", out.string(), "--particles",
                                  "500", "--origin", origin, "--start-pose", start});
@@ -249,8 +250,7 @@ TEST_F(ReplayMapping, ARobotWithoutAReceiverStartsWhereItIsToldAndMaps) {
   const Result unplaced =
       run_cli({"replay", logs.string(), "--out", out.string(), "--start-pose", start});
   EXPECT_EQ(unplaced.status, kExitUsage);
-  EXPECT_NE(unplaced.err.find("--start-pose takes X,Y,YAW_DEG"), std::string::npos)
-      << unplaced.err;
+  EXPECT_NE(unplaced.err.find("--start-pose takes X,Y,YAW_DEG"), std::string::npos) << unplaced.err;
   fs::remove_all(logs);
   fs::remove_all(out);
 }

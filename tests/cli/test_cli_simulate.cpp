@@ -24,9 +24,9 @@ namespace {
 namespace fs = std::filesystem;
 
 using Result = testing::CliResult;
+using blockmap::testing::scratch;
 using testing::read_file;
 using testing::run_cli;
-using blockmap::testing::scratch;
 
 std::vector<nlohmann::json> json_lines(const std::string& text) {
   std::vector<nlohmann::json> lines;
@@ -233,8 +233,8 @@ TEST(Simulate, ReceiverFaultsChangeTheFixesAndLeaveTheRestOfTheRunAsItWas) {
   EXPECT_EQ(fixes, 80u);
   EXPECT_GT(jumped, 8u);
   EXPECT_LT(jumped, 28u);
-  const Result backwards = run_cli({"simulate", "--world", "usc_block", "--out", faulty.string(),
-                                    "--gps-silent", "10,5"});
+  const Result backwards = run_cli(
+      {"simulate", "--world", "usc_block", "--out", faulty.string(), "--gps-silent", "10,5"});
   EXPECT_EQ(backwards.status, kExitUsage);
   EXPECT_NE(backwards.err.find("--gps-silent takes FROM_S,TO_S"), std::string::npos);
   fs::remove_all(plain);

@@ -5,12 +5,15 @@
 #include <array>
 #include <cmath>
 #include <optional>
+#include <vector>
 
 #include "blockmap/core/arena.hpp"
 #include "blockmap/localize/localizer.hpp"
 #include "blockmap/localize/particle_filter.hpp"
+#include "blockmap/localize/loop_closer.hpp"
 #include "blockmap/localize/path_smoother.hpp"
 #include "memory_assertions.hpp"
+#include "synthetic_street.hpp"
 
 namespace blockmap::localize {
 namespace {
@@ -112,6 +115,53 @@ TEST(LocalizeBudget, ThePathSmootherAllocatesNothingAfterInitAndFitsItsBudget) {
   EXPECT_GT(smoother.counters().thinnings, 0u);
   EXPECT_EQ(smoother.counters().fixes, 400u);
   EXPECT_LE(smoother.memory_bytes(), arena.used_bytes());
+  EXPECT_LE(arena.used_bytes(), budget);
+  EXPECT_EQ(arena.failed_allocations().value(), 0u);
+}
+
+// Loop closing: submaps gathered and matched against earlier ones, closures solved with the
+// path. The scans are made before the measured loop (a laser's driver fills a buffer it owns).
+TEST(LocalizeBudget, LoopClosingAllocatesNothingAfterInitAndFitsItsBudget) {
+  using synthetic_street::kScanStepM;
+  using synthetic_street::kStreetM;
+  LoopClosureConfig loops;
+  loops.max_submaps = 16;  // 28 submaps below: thinned
+  const PathSmootherConfig path_config;
+  const std::size_t budget = LoopCloser::arena_bytes(loops) + PathSmoother::arena_bytes(path_config);
+  Arena arena(budget);
+  LoopCloser closer;
+  closer.init(arena, loops);
+  PathSmoother path;
+  path.init(arena, path_config);
+  arena.seal();
+  const std::vector<synthetic_street::Facade> street = synthetic_street::street_of(8.0);
+  std::vector<Pose2> odometry;
+  std::vector<std::vector<Eigen::Vector2d>> scans;
+  for (double s = 0.0; s <= 2.0 * kStreetM; s += kScanStepM) {
+    const Pose2 truth = synthetic_street::street_truth_at(s);
+    odometry.push_back(synthetic_street::drifted_back(truth));
+    scans.push_back(synthetic_street::laser_scan_at(street, truth));
+  }
+  std::array<LoopClosure, kMaxClosureCandidates> found{};
+  const auto drive = [&] {
+    for (std::size_t i = 0; i < scans.size(); ++i) {
+      path.add(odometry[i], std::nullopt);
+      if (closer.add_scan(odometry[i], scans[i])) {
+        const std::size_t count = closer.find_closures(path, found);
+        for (std::size_t k = 0; k < count; ++k) {
+          path.close_loop(found[k]);
+        }
+      }
+      if (i % 40 == 0) {
+        path.solve();
+      }
+    }
+    path.solve();
+  };
+  EXPECT_NO_ALLOCATIONS(drive());
+  EXPECT_GT(path.closure_count(), 0u);
+  EXPECT_GT(closer.counters().thinnings, 0u);
+  EXPECT_LE(closer.memory_bytes() + path.memory_bytes(), arena.used_bytes());
   EXPECT_LE(arena.used_bytes(), budget);
   EXPECT_EQ(arena.failed_allocations().value(), 0u);
 }

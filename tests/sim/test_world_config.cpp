@@ -100,7 +100,8 @@ TEST(WorldFiles, TheLoopClosingWorldsHaveSkewedStreetsLoopsAndDeadEnds) {
       const Vec2 leg = path[i] - path[i - 1];
       length_m += leg.norm();
       // Along neither axis, by more than 5 degrees.
-      const double angle_deg = std::atan2(std::abs(leg.y()), std::abs(leg.x())) * 180.0 / std::numbers::pi;
+      const double angle_deg =
+          std::atan2(std::abs(leg.y()), std::abs(leg.x())) * 180.0 / std::numbers::pi;
       skewed = skewed || (leg.norm() > 20.0 && angle_deg > 5.0 && angle_deg < 85.0);
       // A long leg driven back along itself after a short turn: a dead end.
       for (std::size_t j = i + 1; j + 1 < path.size() && j <= i + 3; ++j) {

@@ -61,7 +61,7 @@ struct LoopClosureConfig {
   std::size_t max_cells_per_submap = 2048;
   std::size_t max_query_points = 512;
   std::uint32_t grid_across = 768;  // the scratch grid's side in cells (76.8 m at 0.1 m)
-  std::uint32_t levels = 4;  // 0.1 to 0.8 m: the search on the finest that spans its window
+  std::uint32_t levels = 4;         // 0.1 to 0.8 m: the search on the finest that spans its window
   double candidate_distance_m = 15.0;
   double min_travel_apart_m = 100.0;
   std::size_t max_candidates = 4;  // the nearest earlier submaps tried per finished one
