@@ -9,6 +9,7 @@
 
 #include "blockmap/core/angles.hpp"
 #include "blockmap/core/check.hpp"
+#include "bilinear.hpp"
 
 namespace blockmap::localize {
 namespace {
@@ -442,25 +443,13 @@ void LoopCloser::refine(const Level& level, const Eigen::Vector3d& start,
     Eigen::Vector3d gradient = Eigen::Vector3d::Zero();
     for (const Eigen::Vector2d& point : query_m_.first(query_count_)) {
       const Eigen::Vector2d turned_m = rotation * point;
-      const double u = (turned_m.x() + pose.x() + centre_m) * inverse_cell_m - 0.5;
-      const double v = (turned_m.y() + pose.y() + centre_m) * inverse_cell_m - 0.5;
-      const double floor_u = std::floor(u);
-      const double floor_v = std::floor(v);
-      const auto x = static_cast<std::int64_t>(floor_u);
-      const auto y = static_cast<std::int64_t>(floor_v);
-      const double fu = u - floor_u;
-      const double fv = v - floor_v;
-      const double m00 = value(level, x, y);
-      const double m10 = value(level, x + 1, y);
-      const double m01 = value(level, x, y + 1);
-      const double m11 = value(level, x + 1, y + 1);
-      const double at =
-          (1.0 - fv) * ((1.0 - fu) * m00 + fu * m10) + fv * ((1.0 - fu) * m01 + fu * m11);
-      const double d_dx = ((1.0 - fv) * (m10 - m00) + fv * (m11 - m01)) * inverse_cell_m;
-      const double d_dy = ((1.0 - fu) * (m01 - m00) + fu * (m11 - m10)) * inverse_cell_m;
-      const Eigen::Vector3d jacobian(d_dx, d_dy, -d_dx * turned_m.y() + d_dy * turned_m.x());
+      const bilinear::Sample at = bilinear::sample(
+          turned_m.x() + pose.x() + centre_m, turned_m.y() + pose.y() + centre_m, inverse_cell_m,
+          [this, &level](std::int64_t x, std::int64_t y) { return value(level, x, y); });
+      const Eigen::Vector3d jacobian(at.d_dx, at.d_dy,
+                                     -at.d_dx * turned_m.y() + at.d_dy * turned_m.x());
       hessian.noalias() += jacobian * jacobian.transpose();
-      gradient += jacobian * (1.0 - at);
+      gradient += jacobian * (1.0 - at.value);
     }
     match.hessian = hessian;
     Eigen::Matrix3d held = hessian;

@@ -10,6 +10,7 @@
 #include "blockmap/core/angles.hpp"
 #include "blockmap/core/check.hpp"
 #include "blockmap/core/floor_div.hpp"
+#include "bilinear.hpp"
 
 namespace blockmap::localize {
 namespace {
@@ -244,24 +245,11 @@ double ScanMatcher::cell_value(const Level& level, std::int64_t x, std::int64_t 
 }
 
 ScanMatcher::Sample ScanMatcher::sample(const Level& level, double x_m, double y_m) const noexcept {
-  // Cell centres are the interpolation's nodes.
-  const double u = x_m * level.inverse_cell_m - 0.5;
-  const double v = y_m * level.inverse_cell_m - 0.5;
-  const double floor_u = std::floor(u);
-  const double floor_v = std::floor(v);
-  const auto x = static_cast<std::int64_t>(floor_u);
-  const auto y = static_cast<std::int64_t>(floor_v);
-  const double fu = u - floor_u;
-  const double fv = v - floor_v;
-  const double m00 = cell_value(level, x, y);
-  const double m10 = cell_value(level, x + 1, y);
-  const double m01 = cell_value(level, x, y + 1);
-  const double m11 = cell_value(level, x + 1, y + 1);
-  Sample out;
-  out.value = (1.0 - fv) * ((1.0 - fu) * m00 + fu * m10) + fv * ((1.0 - fu) * m01 + fu * m11);
-  out.d_dx = ((1.0 - fv) * (m10 - m00) + fv * (m11 - m01)) * level.inverse_cell_m;
-  out.d_dy = ((1.0 - fu) * (m01 - m00) + fu * (m11 - m10)) * level.inverse_cell_m;
-  return out;
+  const bilinear::Sample at =
+      bilinear::sample(x_m, y_m, level.inverse_cell_m, [this, &level](std::int64_t x, std::int64_t y) {
+        return cell_value(level, x, y);
+      });
+  return {at.value, at.d_dx, at.d_dy};
 }
 
 std::uint8_t ScanMatcher::hits_at(const Eigen::Vector2d& point_m) const noexcept {
