@@ -7,9 +7,9 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 
+#include "bilinear.hpp"
 #include "blockmap/core/angles.hpp"
 #include "blockmap/core/check.hpp"
-#include "bilinear.hpp"
 
 namespace blockmap::localize {
 namespace {

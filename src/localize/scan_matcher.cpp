@@ -7,10 +7,10 @@
 
 #include <Eigen/Cholesky>
 
+#include "bilinear.hpp"
 #include "blockmap/core/angles.hpp"
 #include "blockmap/core/check.hpp"
 #include "blockmap/core/floor_div.hpp"
-#include "bilinear.hpp"
 
 namespace blockmap::localize {
 namespace {
@@ -245,10 +245,9 @@ double ScanMatcher::cell_value(const Level& level, std::int64_t x, std::int64_t 
 }
 
 ScanMatcher::Sample ScanMatcher::sample(const Level& level, double x_m, double y_m) const noexcept {
-  const bilinear::Sample at =
-      bilinear::sample(x_m, y_m, level.inverse_cell_m, [this, &level](std::int64_t x, std::int64_t y) {
-        return cell_value(level, x, y);
-      });
+  const bilinear::Sample at = bilinear::sample(
+      x_m, y_m, level.inverse_cell_m,
+      [this, &level](std::int64_t x, std::int64_t y) { return cell_value(level, x, y); });
   return {at.value, at.d_dx, at.d_dy};
 }
 

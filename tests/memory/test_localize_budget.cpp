@@ -9,8 +9,8 @@
 
 #include "blockmap/core/arena.hpp"
 #include "blockmap/localize/localizer.hpp"
-#include "blockmap/localize/particle_filter.hpp"
 #include "blockmap/localize/loop_closer.hpp"
+#include "blockmap/localize/particle_filter.hpp"
 #include "blockmap/localize/path_smoother.hpp"
 #include "memory_assertions.hpp"
 #include "synthetic_street.hpp"
@@ -127,7 +127,8 @@ TEST(LocalizeBudget, LoopClosingAllocatesNothingAfterInitAndFitsItsBudget) {
   LoopClosureConfig loops;
   loops.max_submaps = 16;  // 28 submaps below: thinned
   const PathSmootherConfig path_config;
-  const std::size_t budget = LoopCloser::arena_bytes(loops) + PathSmoother::arena_bytes(path_config);
+  const std::size_t budget =
+      LoopCloser::arena_bytes(loops) + PathSmoother::arena_bytes(path_config);
   Arena arena(budget);
   LoopCloser closer;
   closer.init(arena, loops);

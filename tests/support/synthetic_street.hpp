@@ -46,7 +46,8 @@ inline std::vector<Facade> street_of(double facade_north_m) {
 
 // What a forward-looking level laser returns at `pose` (no occlusion): the walls' points
 // every 10 cm within 30 m and ahead of the robot, in the robot frame, by bearing.
-inline std::vector<Eigen::Vector2d> laser_scan_at(const std::vector<Facade>& walls, const Pose2& pose) {
+inline std::vector<Eigen::Vector2d> laser_scan_at(const std::vector<Facade>& walls,
+                                                  const Pose2& pose) {
   const Eigen::Rotation2Dd to_robot(-pose.yaw_rad);
   const Eigen::Vector2d at_m(pose.x_m, pose.y_m);
   std::vector<Eigen::Vector2d> points;
