@@ -39,6 +39,7 @@ class ScoreCommand : public ::testing::Test {
                      std::to_string(o["height_m"].get<double>())});
     ASSERT_EQ(replay.status, kExitOk) << replay.err;
   }
+  static void TearDownTestSuite() { fs::remove_all(map_); }
   static inline fs::path logs_;
   static inline fs::path map_;
 };
@@ -88,6 +89,7 @@ TEST_F(ScoreCommand, AMapWithoutASolvedPathIsScoredOnItsTrajectory) {
   EXPECT_GT(score["path"]["poses"].get<int>(), 150);
   EXPECT_LT(score["path"]["rms_m"].get<double>(), 2.0);
   EXPECT_EQ(score["matched_path"]["poses"].get<int>(), 0);
+  fs::remove_all(map);
 }
 
 TEST_F(ScoreCommand, AMissingOrDamagedFileIsOneLineAndAFailure) {
@@ -104,6 +106,8 @@ TEST_F(ScoreCommand, AMissingOrDamagedFileIsOneLineAndAFailure) {
   EXPECT_EQ(damaged.status, kExitFailure);
   EXPECT_NE(damaged.err.find("not JSON"), std::string::npos) << damaged.err;
   EXPECT_EQ(std::count(damaged.err.begin(), damaged.err.end(), '\n'), 1);
+  fs::remove_all(empty);
+  fs::remove_all(bad_truth.parent_path());
 }
 
 }  // namespace

@@ -161,9 +161,9 @@ TEST(MapperBudget, TheDetectorsBlocksFollowTheWindowAndTooFewAreReported) {
     return planes::block_capacity(mapper->detector().config());
   };
   MapperConfig config = inputs.config;
-  EXPECT_EQ(block_capacity_for(config), config.window.max_samples / 4);
+  EXPECT_EQ(block_capacity_for(config), config.window.max_samples / 6);
   config.window.max_samples = 160000;
-  EXPECT_EQ(block_capacity_for(config), 40000u);
+  EXPECT_EQ(block_capacity_for(config), 26666u);
   config.planes.max_blocks = 3000;
   EXPECT_EQ(block_capacity_for(config), 3000u);
   // A small window's samples are scattered over more blocks: a block each, up to 4,096.
