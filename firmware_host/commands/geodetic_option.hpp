@@ -2,6 +2,7 @@
 // Earth, in degrees and metres above the WGS-84 ellipsoid.
 #pragma once
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <optional>
@@ -14,16 +15,23 @@ namespace blockmap::cli {
 inline constexpr const char* kOriginFormatError =
     "--origin must be LAT,LON,HEIGHT in degrees and metres";
 
-// The point, or nothing when the text is not three numbers or not a place on Earth.
-inline std::optional<hal::GeodeticPoint> parse_origin(const std::string& text) {
-  hal::GeodeticPoint point;
+// "A,B,C": three numbers and nothing after them, or nothing.
+inline std::optional<std::array<double, 3>> parse_three_numbers(const std::string& text) {
+  std::array<double, 3> values{};
   char tail = 0;
-  if (std::sscanf(text.c_str(), "%lf,%lf,%lf%c", &point.latitude_deg, &point.longitude_deg,
-                  &point.height_m, &tail) != 3 ||
-      std::abs(point.latitude_deg) > 90.0 || std::abs(point.longitude_deg) > 180.0) {
+  if (std::sscanf(text.c_str(), "%lf,%lf,%lf%c", &values[0], &values[1], &values[2], &tail) != 3) {
     return std::nullopt;
   }
-  return point;
+  return values;
+}
+
+// The point, or nothing when the text is not three numbers or not a place on Earth.
+inline std::optional<hal::GeodeticPoint> parse_origin(const std::string& text) {
+  const std::optional<std::array<double, 3>> values = parse_three_numbers(text);
+  if (!values || std::abs((*values)[0]) > 90.0 || std::abs((*values)[1]) > 180.0) {
+    return std::nullopt;
+  }
+  return hal::GeodeticPoint{(*values)[0], (*values)[1], (*values)[2]};
 }
 
 }  // namespace blockmap::cli

@@ -6,19 +6,20 @@
 // without it the smoothed trajectory to stdout. Laser logs are read when robot.toml names the
 // lasers.
 #include <CLI/CLI.hpp>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <limits>
 #include <memory>
-#include <numbers>
 #include <optional>
 #include <ostream>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "blockmap/core/angles.hpp"
 #include "blockmap/core/spsc_queue.hpp"
 #include "blockmap/hal/config/config_error.hpp"
 #include "blockmap/hal/config/robot.hpp"
@@ -51,19 +52,12 @@ struct ReplayOptions {
 
 // "X,Y,YAW_DEG": three finite numbers.
 std::optional<localize::Pose2> parse_start_pose(const std::string& text) {
-  double values[3] = {};
-  std::istringstream in(text);
-  for (int i = 0; i < 3; ++i) {
-    char comma = ',';
-    if ((i > 0 && !(in >> comma)) || comma != ',' || !(in >> values[i]) ||
-        !std::isfinite(values[i])) {
-      return std::nullopt;
-    }
-  }
-  if (!(in >> std::ws).eof()) {
+  const std::optional<std::array<double, 3>> values = parse_three_numbers(text);
+  if (!values || !std::isfinite((*values)[0]) || !std::isfinite((*values)[1]) ||
+      !std::isfinite((*values)[2])) {
     return std::nullopt;
   }
-  return localize::Pose2{0, values[0], values[1], values[2] * std::numbers::pi / 180.0};
+  return localize::Pose2{0, (*values)[0], (*values)[1], radians_from_degrees((*values)[2])};
 }
 
 // Localization only: no lasers, and the map's capacities at their smallest.

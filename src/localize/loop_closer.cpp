@@ -28,13 +28,6 @@ std::int64_t cell_of(double coordinate_m, double inverse_cell_m) noexcept {
   return static_cast<std::int64_t>(std::floor(coordinate_m * inverse_cell_m));
 }
 
-// `pose` in the frame of `origin`, as (x, y, yaw).
-Eigen::Vector3d relative(const Pose2& origin, const Pose2& pose) noexcept {
-  const Eigen::Vector2d apart_m = Eigen::Rotation2Dd(-origin.yaw_rad) *
-                                  Eigen::Vector2d(pose.x_m - origin.x_m, pose.y_m - origin.y_m);
-  return {apart_m.x(), apart_m.y(), wrap_angle(pose.yaw_rad - origin.yaw_rad)};
-}
-
 }  // namespace
 
 std::string validate(const LoopClosureConfig& config) {
@@ -177,7 +170,7 @@ void LoopCloser::add_cells(const Pose2& pose,
                            std::span<const Eigen::Vector2d> robot_points_m) noexcept {
   last_added_ = pose;
   // The robot frame into the submap's: the pose relative to the submap's first one.
-  const Eigen::Vector3d in_submap = relative(open_origin_, pose);
+  const Eigen::Vector3d in_submap = pose_in_frame_of(open_origin_, pose);
   const Eigen::Rotation2Dd turn(in_submap.z());
   const Eigen::Vector2d shift_m = in_submap.head<2>();
   const double range_sq = config_.max_range_m * config_.max_range_m;
@@ -250,7 +243,6 @@ void LoopCloser::finish_submap() noexcept {
       keep == 0 ? Eigen::Vector2d::Zero() : Eigen::Vector2d(sum_m / static_cast<double>(keep));
   submap.count = static_cast<std::uint32_t>(keep);
   ++counters_.submaps;
-  finished_ = true;
 }
 
 void LoopCloser::thin_submaps() noexcept {
@@ -276,11 +268,9 @@ std::span<const LoopCloser::Cell> LoopCloser::cells_of(const Submap& submap) con
 
 std::size_t LoopCloser::find_closures(
     const PathSmoother& path, std::span<LoopClosure, kMaxClosureCandidates> found) noexcept {
-  if (!finished_ || submap_count_ < 2 || path.keyframe_count() == 0) {
-    finished_ = false;
+  if (submap_count_ < 2 || path.keyframe_count() == 0) {
     return 0;
   }
-  finished_ = false;
   const Submap& query = submaps_[submap_count_ - 1];
   const Pose2 query_solved = path.solved_pose(query.origin);
   // The nearest earlier submaps by the solved path, far enough back along it.
@@ -296,7 +286,7 @@ std::size_t LoopCloser::find_closures(
     if (target.to_m > query.from_m - config_.min_travel_apart_m) {
       continue;
     }
-    const Eigen::Vector3d guess = relative(path.solved_pose(target.origin), query_solved);
+    const Eigen::Vector3d guess = pose_in_frame_of(path.solved_pose(target.origin), query_solved);
     const double distance_m =
         (Eigen::Rotation2Dd(guess.z()) * query.seen_m + guess.head<2>() - target.seen_m).norm();
     if (distance_m > config_.candidate_distance_m) {

@@ -25,13 +25,6 @@ Eigen::Vector2d perpendicular(const Eigen::Vector2d& v) noexcept {
   return {-v.y(), v.x()};
 }
 
-// `odometry` in the frame of `from` (both odometry poses): the offset a solved pose carries.
-Eigen::Vector3d offset_from(const Pose2& from, const Pose2& odometry) noexcept {
-  const Eigen::Vector2d apart_m = Eigen::Rotation2Dd(-from.yaw_rad) *
-                                  Eigen::Vector2d(odometry.x_m - from.x_m, odometry.y_m - from.y_m);
-  return {apart_m.x(), apart_m.y(), wrap_angle(odometry.yaw_rad - from.yaw_rad)};
-}
-
 }  // namespace
 
 void PathSmoother::close_loop(const LoopClosure& closure) noexcept {
@@ -59,7 +52,7 @@ void PathSmoother::close_loop(const LoopClosure& closure) noexcept {
 Pose2 PathSmoother::solved_pose(const Pose2& odometry) const noexcept {
   BLOCKMAP_CHECK_MSG(count_ > 0, "solved_pose() before the first keyframe");
   const std::size_t k = keyframe_nearest(odometry.stamp_ns);
-  const Eigen::Vector3d offset = offset_from(keyframes_[k].odometry, odometry);
+  const Eigen::Vector3d offset = pose_in_frame_of(keyframes_[k].odometry, odometry);
   const Keyframe& keyframe = keyframes_[k];
   const Eigen::Vector2d at_m = Eigen::Vector2d(keyframe.state[kX], keyframe.state[kY]) +
                                Eigen::Rotation2Dd(keyframe.state[kYaw]) * offset.head<2>();
@@ -74,8 +67,8 @@ void PathSmoother::linearize_closure(Closure& c) const noexcept {
   c.b = keyframe_nearest(c.closure.later.stamp_ns);
   const Keyframe& ka = keyframes_[c.a];
   const Keyframe& kb = keyframes_[c.b];
-  const Eigen::Vector3d da = offset_from(ka.odometry, c.closure.earlier);
-  const Eigen::Vector3d db = offset_from(kb.odometry, c.closure.later);
+  const Eigen::Vector3d da = pose_in_frame_of(ka.odometry, c.closure.earlier);
+  const Eigen::Vector3d db = pose_in_frame_of(kb.odometry, c.closure.later);
   const Eigen::Vector2d pa(ka.state[kX], ka.state[kY]);
   const Eigen::Vector2d pb(kb.state[kX], kb.state[kY]);
   const Eigen::Vector2d b_lever_m = Eigen::Rotation2Dd(kb.state[kYaw]) * db.head<2>();

@@ -46,15 +46,6 @@ Eigen::Map<Vector5> vector(double (&block)[5]) noexcept {
   return Eigen::Map<Vector5>(block);
 }
 
-// The odometry's motion from `from` to `to` in `from`'s frame: (along, across, turn).
-Eigen::Vector3d relative_motion(const Pose2& from, const Pose2& to) noexcept {
-  const double c = std::cos(from.yaw_rad);
-  const double s = std::sin(from.yaw_rad);
-  const double dx = to.x_m - from.x_m;
-  const double dy = to.y_m - from.y_m;
-  return {c * dx + s * dy, -s * dx + c * dy, wrap_angle(to.yaw_rad - from.yaw_rad)};
-}
-
 }  // namespace
 
 std::string validate(const PathSmootherConfig& config) {
@@ -188,7 +179,7 @@ void PathSmoother::append(const Pose2& odometry, const Pose2& drawn) noexcept {
   } else {
     // Where the odometry puts it from the keyframe before, as solved.
     const Keyframe& before = keyframes_[count_ - 1];
-    const Eigen::Vector3d motion = relative_motion(before.odometry, odometry);
+    const Eigen::Vector3d motion = pose_in_frame_of(before.odometry, odometry);
     const double c = std::cos(before.state[kYaw]);
     const double s = std::sin(before.state[kYaw]);
     next.state[kX] = before.state[kX] + c * motion.x() - s * motion.y();
@@ -233,7 +224,7 @@ void PathSmoother::thin() noexcept {
 void PathSmoother::accumulate_motion(std::size_t i) noexcept {
   const Keyframe& a = keyframes_[i];
   const Keyframe& b = keyframes_[i + 1];
-  const Eigen::Vector3d measured = relative_motion(a.odometry, b.odometry);
+  const Eigen::Vector3d measured = pose_in_frame_of(a.odometry, b.odometry);
   const double distance_m = std::hypot(measured.x(), measured.y());
   const double dt_s = seconds_from_ns(b.odometry.stamp_ns - a.odometry.stamp_ns);
   const double c = std::cos(a.state[kYaw]);

@@ -101,6 +101,14 @@ PlanarCorrection motion_between(const Pose2& from, const Pose2& to) noexcept {
   return out;
 }
 
+Eigen::Vector3d pose_in_frame_of(const Pose2& from, const Pose2& to) noexcept {
+  const double c = std::cos(from.yaw_rad);
+  const double s = std::sin(from.yaw_rad);
+  const double dx = to.x_m - from.x_m;
+  const double dy = to.y_m - from.y_m;
+  return {c * dx + s * dy, -s * dx + c * dy, wrap_angle(to.yaw_rad - from.yaw_rad)};
+}
+
 PlanarCorrection compose(const PlanarCorrection& second, const PlanarCorrection& first) noexcept {
   PlanarCorrection out;
   out.yaw_rad = wrap_angle(second.yaw_rad + first.yaw_rad);

@@ -30,12 +30,6 @@ using synthetic_street::laser_scan_at;
 using synthetic_street::street_of;
 using synthetic_street::street_truth_at;
 
-Eigen::Vector3d pose_in(const Pose2& from, const Pose2& to) {
-  const Eigen::Vector2d apart_m =
-      Eigen::Rotation2Dd(-from.yaw_rad) * Eigen::Vector2d(to.x_m - from.x_m, to.y_m - from.y_m);
-  return {apart_m.x(), apart_m.y(), wrap_angle(to.yaw_rad - from.yaw_rad)};
-}
-
 struct StreetDrive {
   std::vector<LoopClosure> closures;
   std::vector<Pose2> truths;  // the odometry -> truth of each pose added, by stamp
@@ -92,9 +86,9 @@ TEST(LoopCloser, TheWayBackIsMatchedToTheWayOutWhereTheyTrulyLie) {
   double worst_rad = 0.0;
   double worst_sigmas = 0.0;
   for (const LoopClosure& closure : closed.closures) {
-    const Eigen::Vector3d truly = pose_in(truth_at_stamp(closed, closure.earlier.stamp_ns),
-                                          truth_at_stamp(closed, closure.later.stamp_ns));
-    const Eigen::Vector3d odometry = pose_in(closure.earlier, closure.later);
+    const Eigen::Vector3d truly = pose_in_frame_of(truth_at_stamp(closed, closure.earlier.stamp_ns),
+                                                   truth_at_stamp(closed, closure.later.stamp_ns));
+    const Eigen::Vector3d odometry = pose_in_frame_of(closure.earlier, closure.later);
     // The odometry is off by the drift: the closure is not.
     EXPECT_GT((odometry - truly).head<2>().norm(), 0.3);
     worst_m = std::max(worst_m, (closure.measured - truly).head<2>().norm());

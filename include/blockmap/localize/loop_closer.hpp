@@ -108,8 +108,9 @@ class LoopCloser {
   // finished (find_closures() is due).
   bool add_scan(const Pose2& pose, std::span<const Eigen::Vector2d> robot_points_m) noexcept;
 
-  // The last finished submap matched against the earlier ones near it by `path`'s solution:
-  // the verified closures into `found` (at most max_candidates); returns how many.
+  // After add_scan() finished a submap: it is matched against the earlier ones near it by
+  // `path`'s solution, the verified closures into `found` (at most max_candidates); returns
+  // how many.
   std::size_t find_closures(const PathSmoother& path,
                             std::span<LoopClosure, kMaxClosureCandidates> found) noexcept;
 
@@ -184,7 +185,6 @@ class LoopCloser {
   Pose2 last_pose_;
   Pose2 last_added_;
   double travel_m_ = 0.0;
-  bool finished_ = false;  // a submap was finished and not yet searched
   LoopClosureCounters counters_;
 };
 

@@ -142,6 +142,8 @@ struct PlanarCorrection {
 
 // The motion that takes `from` to `to`, and `first` followed by `second`.
 [[nodiscard]] PlanarCorrection motion_between(const Pose2& from, const Pose2& to) noexcept;
+// `to` in the frame of `from`: (ahead, to the left, turn).
+[[nodiscard]] Eigen::Vector3d pose_in_frame_of(const Pose2& from, const Pose2& to) noexcept;
 [[nodiscard]] PlanarCorrection compose(const PlanarCorrection& second,
                                        const PlanarCorrection& first) noexcept;
 
