@@ -213,6 +213,21 @@ void MappingSession::report(std::ostream& err, double data_s) const {
           static_cast<unsigned long long>(p.closures_dropped));
       err << text;
     }
+    const localize::MapLocalizer& on_map = mapper_.map_localizer();
+    if (on_map.ready()) {
+      const localize::MapLocalizerCounters& m = on_map.counters();
+      std::snprintf(text, sizeof text,
+                    "prior map: %zu walls, %llu scans weighed, %llu placings (%llu updates "
+                    "with the particles apart, %llu with the returns off its walls, %llu whose "
+                    "walls pinned nothing), %llu resamplings\n",
+                    on_map.map().wall_count(), static_cast<unsigned long long>(m.updates),
+                    static_cast<unsigned long long>(m.placings),
+                    static_cast<unsigned long long>(m.spread_too_wide),
+                    static_cast<unsigned long long>(m.off_the_map),
+                    static_cast<unsigned long long>(m.unpinned),
+                    static_cast<unsigned long long>(m.resamplings));
+      err << text;
+    }
   }
   // Each capacity against the most it held, for sizing a robot's config (config/README.md).
   const planes::PlanesConfig& detector = mapper_.detector().config();

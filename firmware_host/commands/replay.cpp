@@ -34,6 +34,7 @@
 #include "commands/commands.hpp"
 #include "commands/geodetic_option.hpp"
 #include "commands/mapping.hpp"
+#include "commands/prior_map_file.hpp"
 #include "commands/recorded_run.hpp"
 
 namespace blockmap::cli {
@@ -46,6 +47,7 @@ struct ReplayOptions {
   MappingOptions mapping;  // out, config, udp, budget
   std::string origin;      // "LAT,LON,H"; empty: the first good fix
   std::string start_pose;  // "X,Y,YAW_DEG" in the local frame: a robot without a receiver
+  std::string prior_map;   // GeoJSON or buildings.json: localize against it too
   std::uint64_t seed = 1;
   std::size_t particles = pipeline::MapperConfig{}.localizer.filter.particle_count;
 };
@@ -203,6 +205,22 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
     config.localizer.start_at_known_pose = true;
     config.localizer.start_pose = *start;
   }
+  std::vector<localize::MapWall> prior_walls;
+  if (!options.prior_map.empty()) {
+    if (options.origin.empty() || !map_planes) {
+      err << "blockmap: replay: --prior-map needs --origin (where the map lies on Earth) and "
+             "--out\n";
+      return kExitUsage;
+    }
+    std::string problem;
+    prior_walls = read_prior_map(options.prior_map, *fixes->frame(), problem);
+    if (!problem.empty()) {
+      err << "blockmap: replay: --prior-map: " << problem << '\n';
+      return kExitUsage;
+    }
+    config.prior_map.enabled = true;
+    config.prior_map.seed = options.seed;
+  }
   if (const std::string problem = pipeline::validate(config); !problem.empty()) {
     err << "blockmap: replay: " << problem << '\n';
     return kExitUsage;
@@ -221,6 +239,13 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
       !problem.empty()) {
     err << "blockmap: replay: " << problem << '\n';
     return kExitFailure;
+  }
+  if (!prior_walls.empty()) {
+    if (const std::string problem = session->mapper().set_prior_map(prior_walls);
+        !problem.empty()) {
+      err << "blockmap: replay: --prior-map: " << problem << '\n';
+      return kExitUsage;
+    }
   }
 
   TimeMerge merge(*run, *fixes);
@@ -307,6 +332,9 @@ Command add_replay_command(CLI::App& app) {
                     "localize only: write trajectory.csv, read no laser log");
   command->add_option("--origin", options->origin,
                       "the local frame's origin as LAT,LON,HEIGHT (default: the first good fix)");
+  command->add_option("--prior-map", options->prior_map,
+                      "localize against this map too (Monte Carlo): footprints as GeoJSON in "
+                      "WGS-84, or an earlier run's buildings.json; needs --origin");
   command->add_option("--start-pose", options->start_pose,
                       "X,Y,YAW_DEG: a robot without a receiver starts here in the local frame of "
                       "--origin (gps.nmea may then be missing)");

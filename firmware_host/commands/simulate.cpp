@@ -21,6 +21,7 @@
 #include "blockmap/hal/sim/world.hpp"
 #include "cli.hpp"
 #include "commands/commands.hpp"
+#include "outputs/building_outputs.hpp"
 
 namespace blockmap::cli {
 namespace {
@@ -65,6 +66,20 @@ class RecorderAndCloud : public hal::sim::SimSink {
   hal::sim::SimSink* cloud_;
 };
 
+// The world's buildings as GeoJSON in WGS-84: a prior map from a GIS layer
+// (`replay --prior-map`).
+std::string truth_footprints(const hal::sim::World& world) {
+  const hal::LocalEnuFrame frame(world.site.origin);
+  nlohmann::json features = nlohmann::json::array();
+  for (const hal::sim::Building& building : world.buildings) {
+    features.push_back(footprint_feature(building.footprint_m, 0.0, frame,
+                                         {{"id", building.id},
+                                          {"shape", hal::sim::to_string(building.shape)},
+                                          {"height_m", building.height_m}}));
+  }
+  return nlohmann::json{{"type", "FeatureCollection"}, {"features", features}}.dump();
+}
+
 int simulate(const SimulateOptions& options, std::ostream& err) {
   std::string world_source;
   std::string robot_source;
@@ -92,6 +107,7 @@ int simulate(const SimulateOptions& options, std::ostream& err) {
   hal::sim::TruthCloudSink cloud;
   RecorderAndCloud sink(recorder, options.cloud.empty() ? nullptr : &cloud);
   simulation.run(sink);
+  recorder.write_text_file("truth_footprints.geojson", truth_footprints(world) + '\n');
   recorder.finish(options.seed);
   if (!options.cloud.empty()) {
     hal::cloud::write_ply(options.cloud, cloud.points());

@@ -86,6 +86,20 @@ nlohmann::json buildings_json(std::span<const buildings::Building> buildings) {
   return {{"buildings", list}};
 }
 
+nlohmann::json footprint_feature(std::span<const Eigen::Vector2d> footprint_m, double ground_z_m,
+                                 const hal::LocalEnuFrame& frame, nlohmann::json properties) {
+  nlohmann::json ring = nlohmann::json::array();
+  for (std::size_t k = 0; k <= footprint_m.size(); ++k) {
+    const Eigen::Vector2d& p = footprint_m[k % footprint_m.size()];
+    const hal::GeodeticPoint g = frame.to_geodetic(Eigen::Vector3d(p.x(), p.y(), ground_z_m));
+    // RFC 7946: longitude first; 1e-8 degrees is a millimetre.
+    ring.push_back({rounded_to(g.longitude_deg, 1e-8), rounded_to(g.latitude_deg, 1e-8)});
+  }
+  return {{"type", "Feature"},
+          {"geometry", {{"type", "Polygon"}, {"coordinates", nlohmann::json::array({ring})}}},
+          {"properties", std::move(properties)}};
+}
+
 nlohmann::json footprints_geojson(std::span<const buildings::Building> buildings,
                                   const hal::LocalEnuFrame& frame) {
   nlohmann::json features = nlohmann::json::array();
@@ -93,22 +107,12 @@ nlohmann::json footprints_geojson(std::span<const buildings::Building> buildings
     if (building.footprint_size < 3) {
       continue;  // unknown: no footprint to draw
     }
-    nlohmann::json ring = nlohmann::json::array();
-    for (std::size_t k = 0; k <= building.footprint_size; ++k) {
-      const Eigen::Vector2d& p = building.footprint_m[k % building.footprint_size];
-      const hal::GeodeticPoint g =
-          frame.to_geodetic(Eigen::Vector3d(p.x(), p.y(), building.ground_z_m));
-      // RFC 7946: longitude first; 1e-8 degrees is a millimetre.
-      ring.push_back({rounded_to(g.longitude_deg, 1e-8), rounded_to(g.latitude_deg, 1e-8)});
-    }
-    features.push_back(
-        {{"type", "Feature"},
-         {"geometry", {{"type", "Polygon"}, {"coordinates", nlohmann::json::array({ring})}}},
-         {"properties",
-          {{"id", building.id},
-           {"shape", std::string(buildings::to_string(building.shape))},
-           {"height_m", rounded_to(building.height_m, 1e-3)},
-           {"confidence", rounded_to(building.confidence, 1e-3)}}}});
+    features.push_back(footprint_feature(
+        std::span(building.footprint_m).first(building.footprint_size), building.ground_z_m, frame,
+        {{"id", building.id},
+         {"shape", std::string(buildings::to_string(building.shape))},
+         {"height_m", rounded_to(building.height_m, 1e-3)},
+         {"confidence", rounded_to(building.confidence, 1e-3)}}));
   }
   return {{"type", "FeatureCollection"}, {"features", features}};
 }

@@ -21,6 +21,12 @@ namespace blockmap::cli {
 // "plane"}]}]}; "plane" is null for a virtual wall.
 [[nodiscard]] nlohmann::json buildings_json(std::span<const buildings::Building> buildings);
 
+// A GeoJSON Feature: the footprint (counter-clockwise, in the local frame) as a closed
+// Polygon in WGS-84 ([longitude, latitude]), with `properties`.
+[[nodiscard]] nlohmann::json footprint_feature(std::span<const Eigen::Vector2d> footprint_m,
+                                               double ground_z_m, const hal::LocalEnuFrame& frame,
+                                               nlohmann::json properties);
+
 // A FeatureCollection: one Polygon per building with a footprint (closed, counter-clockwise,
 // [longitude, latitude]) and its id, shape, height and confidence as properties.
 [[nodiscard]] nlohmann::json footprints_geojson(std::span<const buildings::Building> buildings,

@@ -94,6 +94,43 @@ void read_loop_closure_table(TableReader& t, localize::LoopClosureConfig& l) {
   }
 }
 
+// Monte Carlo localization against a prior 2D map (docs/localize.md, A prior map); `enabled`
+// is set by a map being given (replay --prior-map), not here.
+void read_prior_map_table(TableReader& t, localize::PriorMapConfig& m) {
+  m.cell_m = t.positive_or("cell_m", m.cell_m);
+  m.max_cells = t.capacity_or("max_cells", m.max_cells);
+  m.margin_m = t.non_negative_or("margin_m", m.margin_m);
+  m.particles = t.capacity_or("particles", m.particles);
+  m.max_points = t.capacity_or("max_points", m.max_points);
+  m.hit_sigma_m = t.positive_or("hit_sigma_m", m.hit_sigma_m);
+  m.unmapped_share = t.positive_or("unmapped_share", m.unmapped_share);
+  m.inside_share = t.positive_or("inside_share", m.inside_share);
+  m.independent_points = t.positive_or("independent_points", m.independent_points);
+  m.update_spacing_m = t.positive_or("update_spacing_m", m.update_spacing_m);
+  m.update_turn_deg = t.positive_or("update_turn_deg", m.update_turn_deg);
+  m.motion_sigma_m = t.non_negative_or("motion_sigma_m", m.motion_sigma_m);
+  m.motion_sigma_per_m = t.non_negative_or("motion_sigma_per_m", m.motion_sigma_per_m);
+  m.turn_sigma_deg = t.non_negative_or("turn_sigma_deg", m.turn_sigma_deg);
+  m.turn_sigma_deg_per_m = t.non_negative_or("turn_sigma_deg_per_m", m.turn_sigma_deg_per_m);
+  m.start_after_m = t.non_negative_or("start_after_m", m.start_after_m);
+  m.start_sigma_m = t.non_negative_or("start_sigma_m", m.start_sigma_m);
+  m.start_yaw_sigma_deg = t.non_negative_or("start_yaw_sigma_deg", m.start_yaw_sigma_deg);
+  m.max_placing_sigma_m = t.positive_or("max_placing_sigma_m", m.max_placing_sigma_m);
+  m.max_spread_m = t.positive_or("max_spread_m", m.max_spread_m);
+  m.min_hit_share = t.non_negative_or("min_hit_share", m.min_hit_share);
+  m.place_spacing_m = t.non_negative_or("place_spacing_m", m.place_spacing_m);
+  m.min_sigma_m = t.positive_or("min_sigma_m", m.min_sigma_m);
+  m.placing_gate_m = t.positive_or("placing_gate_m", m.placing_gate_m);
+  m.restart_after = static_cast<std::uint32_t>(t.capacity_or("restart_after", m.restart_after));
+  m.lost_after = static_cast<std::uint32_t>(t.capacity_or("lost_after", m.lost_after));
+  t.finish();
+  localize::PriorMapConfig checked = m;
+  checked.enabled = true;
+  if (const std::string problem = localize::validate(checked); !problem.empty()) {
+    t.reject(problem);
+  }
+}
+
 // The detector's table as the mapper reads it: the window sets its sample capacity, and a
 // robot whose lasers are all level sees its walls as lines.
 void read_mapper_planes_table(TableReader& t, pipeline::MapperConfig& c) {
@@ -151,6 +188,9 @@ pipeline::MapperConfig parse_mapper_config(std::string_view text, std::string_vi
   }
   if (auto table = root.table("loop_closure")) {
     read_loop_closure_table(*table, c.loop_closure);
+  }
+  if (auto table = root.table("prior_map")) {
+    read_prior_map_table(*table, c.prior_map);
   }
   bool anchor_set = false;
   if (auto table = root.table("scan_matching")) {

@@ -307,7 +307,8 @@ std::size_t LoopCloser::find_closures(
   std::size_t count = 0;
   for (std::size_t k = 0; k < nearest_count; ++k) {
     const Submap& target = submaps_[nearest[k].index];
-    const Window window = window_between(target, query, path.counters().fixes > 0);
+    const Window window =
+        window_between(target, query, path.counters().fixes + path.counters().placings > 0);
     if (match(target, query, nearest[k].guess, window, found[count])) {
       ++count;
     }

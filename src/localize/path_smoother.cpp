@@ -121,23 +121,8 @@ void PathSmoother::add(const Pose2& odometry, const Pose2& drawn,
     ++counters_.refused;
     return;
   }
-  const bool same_time =
-      count_ > 0 && odometry.stamp_ns == keyframes_[count_ - 1].odometry.stamp_ns;
   if (fix_m.has_value()) {
-    if (!same_time) {
-      append(odometry, drawn);
-    }
-    Keyframe& keyframe = keyframes_[count_ - 1];
-    if (counters_.fixes == 0) {
-      // The first fix says where the path is: every keyframe so far moves with it, so that
-      // Gauss-Newton starts near the answer.
-      const double dx = fix_m->x() - keyframe.state[kX];
-      const double dy = fix_m->y() - keyframe.state[kY];
-      for (std::size_t i = 0; i < count_; ++i) {
-        keyframes_[i].state[kX] += dx;
-        keyframes_[i].state[kY] += dy;
-      }
-    }
+    Keyframe& keyframe = keyframe_placed_at(odometry, drawn, *fix_m);
     double sigma_m = config_.fix_sigma_m * std::max(fix_sigma_scale, 1e-3);
     FixMean* into = &keyframe.code_fixes;
     if (carrier_phase(correction)) {
@@ -157,6 +142,61 @@ void PathSmoother::add(const Pose2& odometry, const Pose2& drawn,
   if (std::hypot(odometry.x_m - last.x_m, odometry.y_m - last.y_m) >= config_.keyframe_spacing_m) {
     append(odometry, drawn);
   }
+}
+
+void PathSmoother::Placings::merge(const Eigen::Vector2d& position_m,
+                                   const Eigen::Matrix2d& more) noexcept {
+  information[0] += more(0, 0);
+  information[1] += more(0, 1);
+  information[2] += more(1, 1);
+  const Eigen::Vector2d added = more * position_m;
+  moment[0] += added.x();
+  moment[1] += added.y();
+}
+
+void PathSmoother::Placings::merge_moved(const Placings& other,
+                                         const Eigen::Vector2d& by_m) noexcept {
+  // m = L p for each placed p: moving them by -by takes L by off.
+  for (int k = 0; k < 3; ++k) {
+    information[k] += other.information[k];
+  }
+  moment[0] +=
+      other.moment[0] - (other.information[0] * by_m.x() + other.information[1] * by_m.y());
+  moment[1] +=
+      other.moment[1] - (other.information[1] * by_m.x() + other.information[2] * by_m.y());
+}
+
+void PathSmoother::place(const Pose2& odometry, const Pose2& drawn,
+                         const Eigen::Vector2d& position_m,
+                         const Eigen::Matrix2d& information) noexcept {
+  if (count_ > 0 && odometry.stamp_ns < keyframes_[count_ - 1].odometry.stamp_ns) {
+    ++counters_.refused;
+    return;
+  }
+  Keyframe& keyframe = keyframe_placed_at(odometry, drawn, position_m);
+  keyframe.placings.merge(position_m, information);
+  ++counters_.placings;
+}
+
+PathSmoother::Keyframe& PathSmoother::keyframe_placed_at(
+    const Pose2& odometry, const Pose2& drawn, const Eigen::Vector2d& position_m) noexcept {
+  const bool same_time =
+      count_ > 0 && odometry.stamp_ns == keyframes_[count_ - 1].odometry.stamp_ns;
+  if (!same_time) {
+    append(odometry, drawn);
+  }
+  Keyframe& keyframe = keyframes_[count_ - 1];
+  if (counters_.fixes == 0 && counters_.placings == 0) {
+    // The first fix says where the path is: every keyframe so far moves with it, so that
+    // Gauss-Newton starts near the answer.
+    const double dx = position_m.x() - keyframe.state[kX];
+    const double dy = position_m.y() - keyframe.state[kY];
+    for (std::size_t i = 0; i < count_; ++i) {
+      keyframes_[i].state[kX] += dx;
+      keyframes_[i].state[kY] += dy;
+    }
+  }
+  return keyframe;
 }
 
 void PathSmoother::append(const Pose2& odometry, const Pose2& drawn) noexcept {
@@ -216,6 +256,7 @@ void PathSmoother::thin() noexcept {
         (into.*member).merge(fixes.east_m - dx_m, fixes.north_m - dy_m, fixes.weight);
       }
     }
+    into.placings.merge_moved(from.placings, Eigen::Vector2d(dx_m, dy_m));
   }
   count_ = kept;
   ++counters_.thinnings;
@@ -301,6 +342,19 @@ void PathSmoother::accumulate_receiver(std::size_t i) noexcept {
 void PathSmoother::accumulate_fix(std::size_t i) noexcept {
   accumulate_fix(i, keyframes_[i].code_fixes, true);
   accumulate_fix(i, keyframes_[i].carrier_fixes, false);
+  accumulate_placings(i);
+}
+
+void PathSmoother::accumulate_placings(std::size_t i) noexcept {
+  // 1/2 p' L p - m' p: the placings' sum, whose gradient is L p - m.
+  const Placings& placings = keyframes_[i].placings;
+  const Eigen::Matrix2d information{{placings.information[0], placings.information[1]},
+                                    {placings.information[1], placings.information[2]}};
+  const Eigen::Vector2d position(keyframes_[i].state[kX], keyframes_[i].state[kY]);
+  const Eigen::Vector2d gradient =
+      information * position - Eigen::Vector2d(placings.moment[0], placings.moment[1]);
+  matrix(blocks_[i].diagonal).block<2, 2>(kX, kX) += information;
+  vector(blocks_[i].gradient).segment<2>(kX) += gradient;
 }
 
 void PathSmoother::accumulate_fix(std::size_t i, const FixMean& fixes, bool slow_error) noexcept {

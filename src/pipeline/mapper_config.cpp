@@ -143,12 +143,17 @@ std::string validate_stages(const MapperConfig& config) {
 // What the whole run's path needs of the rest.
 std::string validate_rigid_path(const MapperConfig& config) {
   if (!solves_the_path(config)) {
-    return {};
+    return config.prior_map.enabled ? "mapper: prior_map needs the rigid path (rigid_path on, "
+                                      "scan matching with the localizer's live poses)"
+                                    : std::string();
   }
   if (std::string problem = localize::validate(config.path); !problem.empty()) {
     return problem;
   }
   if (std::string problem = localize::validate(config.loop_closure); !problem.empty()) {
+    return problem;
+  }
+  if (std::string problem = localize::validate(config.prior_map); !problem.empty()) {
     return problem;
   }
   if (!matcher_config(config).enabled) {

@@ -49,9 +49,65 @@ double overlap_m(double a_from, double a_to, double b_from, double b_to) noexcep
 }  // namespace
 
 void RigidPathSolver::init(Arena& arena, const localize::PathSmootherConfig& config,
-                           const localize::LoopClosureConfig& loops) {
+                           const localize::LoopClosureConfig& loops,
+                           const localize::PriorMapConfig& prior_map) {
   path_.init(arena, config);
   closer_.init(arena, loops);
+  on_map_.init(arena, prior_map);
+  start_after_m_ = prior_map.start_after_m;
+  placing_gate_m_ = prior_map.placing_gate_m;
+  restart_after_ = prior_map.restart_after;
+  if (!starts_placed_) {
+    start_sigma_m_ = prior_map.start_sigma_m;
+    start_yaw_sigma_rad_ = prior_map.start_yaw_sigma_deg * kRadiansPerDegree;
+  }
+}
+
+void RigidPathSolver::localize_on_map(const localize::Pose2& in_path,
+                                      const localize::Pose2& drawn_at,
+                                      std::span<const Eigen::Vector2d> match_points_m) noexcept {
+  if (!on_map_.ready()) {
+    return;
+  }
+  if (!on_map_.started()) {
+    // The path's own frame is the matcher's, turned anyhow: the particles start in the local
+    // frame, where the solved path puts the robot once it is placed.
+    if (starts_placed_ || (path_.counters().fixes > 0 && solved_travelled_m_ >= start_after_m_)) {
+      on_map_.start(path_.solved_pose(in_path), in_path, start_sigma_m_, start_yaw_sigma_rad_);
+    }
+    return;
+  }
+  localize::MapPlacing placing;
+  const bool placed_here = on_map_.add_scan(in_path, match_points_m, placing);
+  const localize::Pose2 solved = path_.solved_pose(in_path);
+  if (on_map_.lost()) {
+    restart_map_localizer(solved, in_path);
+    return;
+  }
+  if (!placed_here) {
+    return;
+  }
+  const double gate_m = path_.counters().placings > 0
+                            ? placing_gate_m_
+                            : std::max(placing_gate_m_, 3.0 * start_sigma_m_);
+  if (std::hypot(placing.pose.x_m - solved.x_m, placing.pose.y_m - solved.y_m) > gate_m) {
+    ++placings_refused_;
+    if (++refused_in_a_row_ >= restart_after_) {
+      restart_map_localizer(solved, in_path);
+    }
+    return;
+  }
+  refused_in_a_row_ = 0;
+  path_.place(in_path, drawn_at, Eigen::Vector2d(placing.pose.x_m, placing.pose.y_m),
+              placing.information);
+}
+
+void RigidPathSolver::restart_map_localizer(const localize::Pose2& solved,
+                                            const localize::Pose2& in_path) noexcept {
+  on_map_.start(solved, in_path, std::max(start_sigma_m_, placing_gate_m_ / 3.0),
+                start_yaw_sigma_rad_);
+  refused_in_a_row_ = 0;
+  ++map_restarts_;
 }
 
 void RigidPathSolver::add_fix(const localize::GpsObservation& robot_fix) noexcept {
@@ -80,6 +136,9 @@ void RigidPathSolver::add_matched_scan(TimestampNs stamp_ns, const localize::Pos
         alone ? std::hypot(in_path.x_m - last_pose_.x_m, in_path.y_m - last_pose_.y_m) : 0.0,
         alone ? seconds_from_ns(stamp_ns - last_pose_.stamp_ns) : 0.0);
   }
+  if (have_last_) {
+    travelled_m_ += std::hypot(in_path.x_m - last_pose_.x_m, in_path.y_m - last_pose_.y_m);
+  }
   have_last_ = true;
   last_pose_ = in_path;
   last_odometry_ = odometry;
@@ -96,6 +155,9 @@ void RigidPathSolver::add_matched_scan(TimestampNs stamp_ns, const localize::Pos
   if (!added) {
     path_.add(in_path, drawn_at, std::nullopt);
   }
+  if (scan_matched) {
+    localize_on_map(in_path, drawn_at, match_points_m);
+  }
   // A finished submap is matched against the earlier ones near it: the verified revisits
   // hold the passes to each other.
   if (scan_matched && closer_.add_scan(in_path, match_points_m)) {
@@ -107,6 +169,7 @@ void RigidPathSolver::add_matched_scan(TimestampNs stamp_ns, const localize::Pos
   if (stamp_ns >= next_solve_ns_) {
     path_.solve();
     solved_ = true;
+    solved_travelled_m_ = travelled_m_;
     next_solve_ns_ = stamp_ns + kSolveEveryNs;
   }
 }

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -251,6 +252,68 @@ TEST_F(ReplayMapping, ARobotWithoutAReceiverStartsWhereItIsToldAndMaps) {
       run_cli({"replay", logs.string(), "--out", out.string(), "--start-pose", start});
   EXPECT_EQ(unplaced.status, kExitUsage);
   EXPECT_NE(unplaced.err.find("--start-pose takes X,Y,YAW_DEG"), std::string::npos) << unplaced.err;
+  fs::remove_all(logs);
+  fs::remove_all(out);
+}
+
+TEST(ReplayPriorMap, APriorMapPlacesARobotWithoutAReceiver) {
+  BLOCKMAP_LONG_TEST();
+  // A minute of benning without gps.nmea, started at the truth's first pose, and the world's
+  // footprints (simulate's truth_footprints.geojson, WGS-84) as the prior map: the particles
+  // weigh the level scans against it, and its placings hold the rigid path.
+  std::string err;
+  const fs::path simulated =
+      testing::simulated_logs({"--world", "benning", "--seed", "1", "--duration-s", "60"}, err);
+  ASSERT_FALSE(simulated.empty()) << err;
+  const fs::path logs = scratch("replay_prior_map");
+  fs::remove_all(logs);
+  fs::copy(simulated, logs);
+  fs::remove(logs / "gps.nmea");
+  const nlohmann::json truth = nlohmann::json::parse(read_file(logs / "truth.json"));
+  const nlohmann::json& first = truth["trajectory"][0];
+  const nlohmann::json& o = truth["origin"];
+  char origin[96];
+  std::snprintf(origin, sizeof origin, "%.9f,%.9f,%.3f", o["latitude_deg"].get<double>(),
+                o["longitude_deg"].get<double>(), o["height_m"].get<double>());
+  char start[96];
+  std::snprintf(start, sizeof start, "%.3f,%.3f,%.3f", first["x_m"].get<double>(),
+                first["y_m"].get<double>(),
+                first["yaw_rad"].get<double>() * 180.0 / std::numbers::pi);
+  const fs::path map = logs / "truth_footprints.geojson";
+  ASSERT_TRUE(fs::exists(map));
+  const fs::path out = logs.string() + "_out";
+  const Result result = run_cli({"replay", logs.string(), "--out", out.string(), "--origin", origin,
+                                 "--start-pose", start, "--prior-map", map.string()});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  const std::size_t summary = result.err.find("prior map: 32 walls, ");
+  ASSERT_NE(summary, std::string::npos) << result.err;
+  const std::size_t placings = result.err.find(" placings", summary);
+  const std::size_t count_from = result.err.rfind(' ', placings - 1) + 1;
+  EXPECT_GT(std::stoi(result.err.substr(count_from, placings - count_from)), 5)
+      << result.err.substr(summary, 200);
+  // Scored after the rigid alignment: the path where the map put it, the alignment's shift
+  // as small as the shape's error.
+  const Result scored = run_cli({"score", out.string(), logs.string(), "--json"});
+  ASSERT_EQ(scored.status, kExitOk) << scored.err;
+  const nlohmann::json score = nlohmann::json::parse(scored.out);
+  EXPECT_LT(score["path"]["rms_m"].get<double>(), 0.1) << scored.out;
+  const nlohmann::json& shift = score["path"]["alignment"]["shift_m"];
+  EXPECT_LT(std::hypot(shift[0].get<double>(), shift[1].get<double>()), 0.1) << scored.out;
+  // A map needs the frame it is in, and must be a map: one line each.
+  Result bad =
+      run_cli({"replay", logs.string(), "--out", out.string(), "--prior-map", map.string()});
+  EXPECT_EQ(bad.status, kExitUsage);
+  EXPECT_NE(bad.err.find("--prior-map needs --origin"), std::string::npos) << bad.err;
+  bad = run_cli({"replay", logs.string(), "--out", out.string(), "--origin", origin, "--start-pose",
+                 start, "--prior-map", (logs / "robot.toml").string()});
+  EXPECT_EQ(bad.status, kExitUsage);
+  EXPECT_NE(bad.err.find("is not a JSON object"), std::string::npos) << bad.err;
+  std::ofstream(logs / "empty.geojson") << R"({"type": "FeatureCollection", "features": []})";
+  bad = run_cli({"replay", logs.string(), "--out", out.string(), "--origin", origin, "--start-pose",
+                 start, "--prior-map", (logs / "empty.geojson").string()});
+  EXPECT_EQ(bad.status, kExitUsage);
+  EXPECT_NE(bad.err.find("holds no wall"), std::string::npos) << bad.err;
+  EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << bad.err;
   fs::remove_all(logs);
   fs::remove_all(out);
 }

@@ -10,6 +10,7 @@
 #include "blockmap/core/arena.hpp"
 #include "blockmap/localize/localizer.hpp"
 #include "blockmap/localize/loop_closer.hpp"
+#include "blockmap/localize/map_localizer.hpp"
 #include "blockmap/localize/particle_filter.hpp"
 #include "blockmap/localize/path_smoother.hpp"
 #include "memory_assertions.hpp"
@@ -163,6 +164,51 @@ TEST(LocalizeBudget, LoopClosingAllocatesNothingAfterInitAndFitsItsBudget) {
   EXPECT_GT(path.closure_count(), 0u);
   EXPECT_GT(closer.counters().thinnings, 0u);
   EXPECT_LE(closer.memory_bytes() + path.memory_bytes(), arena.used_bytes());
+  EXPECT_LE(arena.used_bytes(), budget);
+  EXPECT_EQ(arena.failed_allocations().value(), 0u);
+}
+
+TEST(LocalizeBudget, MapLocalizationAllocatesNothingAfterInitAndFitsItsBudget) {
+  // The street's facades as the prior map; placings into the path as the rigid path gives
+  // them. The map's grid is built at start-up, after init, in the arena's bytes.
+  PriorMapConfig map_config;
+  map_config.enabled = true;
+  const PathSmootherConfig path_config;
+  const std::size_t budget =
+      MapLocalizer::arena_bytes(map_config) + PathSmoother::arena_bytes(path_config);
+  Arena arena(budget);
+  MapLocalizer localizer;
+  localizer.init(arena, map_config);
+  PathSmoother path;
+  path.init(arena, path_config);
+  arena.seal();
+  const std::vector<synthetic_street::Facade> street = synthetic_street::street_of(8.0);
+  const std::vector<MapWall> walls = synthetic_street::map_walls_of(street);
+  ASSERT_EQ(localizer.set_map(walls), "");
+  std::vector<Pose2> truths;
+  std::vector<std::vector<Eigen::Vector2d>> scans;
+  for (double s = 0.0; s <= 2.0 * synthetic_street::kStreetM; s += synthetic_street::kScanStepM) {
+    truths.push_back(synthetic_street::street_truth_at(s));
+    scans.push_back(synthetic_street::laser_scan_at(street, truths.back()));
+  }
+  localizer.start(truths.front(), truths.front(), 0.05, 0.005);
+  const auto drive = [&] {
+    for (std::size_t i = 0; i < scans.size(); ++i) {
+      path.add(truths[i], std::nullopt);
+      MapPlacing placing;
+      if (localizer.add_scan(truths[i], scans[i], placing)) {
+        path.place(truths[i], truths[i], Eigen::Vector2d(placing.pose.x_m, placing.pose.y_m),
+                   placing.information);
+      }
+      if (i % 40 == 0) {
+        path.solve();
+      }
+    }
+    path.solve();
+  };
+  EXPECT_NO_ALLOCATIONS(drive());
+  EXPECT_GT(path.counters().placings, 50u);
+  EXPECT_LE(localizer.memory_bytes() + path.memory_bytes(), arena.used_bytes());
   EXPECT_LE(arena.used_bytes(), budget);
   EXPECT_EQ(arena.failed_allocations().value(), 0u);
 }

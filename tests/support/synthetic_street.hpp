@@ -13,6 +13,7 @@
 
 #include "blockmap/core/angles.hpp"
 #include "blockmap/localize/particle_filter.hpp"
+#include "blockmap/localize/prior_map.hpp"
 
 namespace blockmap::synthetic_street {
 
@@ -40,6 +41,16 @@ inline std::vector<Facade> street_of(double facade_north_m) {
     walls.push_back({{from, -8.0}, {to, -8.0}});
     walls.push_back({{from, -8.0}, {from, -20.0}});
     walls.push_back({{to, -8.0}, {to, -20.0}});
+  }
+  return walls;
+}
+
+// The facades as a prior map's walls (lines: they enclose nothing).
+inline std::vector<localize::MapWall> map_walls_of(const std::vector<Facade>& facades) {
+  std::vector<localize::MapWall> walls;
+  walls.reserve(facades.size());
+  for (const Facade& facade : facades) {
+    walls.push_back({facade.from_m, facade.to_m});
   }
   return walls;
 }

@@ -120,6 +120,22 @@ TEST(MapperConfigFile, TheLoopClosureTableIsReadAndCheckedAndItsTypoRefused) {
   EXPECT_EQ(error_of("[loop_closure]\nenabled = false\n", papers_robot()), "(no error)");
 }
 
+TEST(MapperConfigFile, ThePriorMapTableIsReadButAMapTurnsItOn) {
+  const pipeline::MapperConfig c =
+      parse_mapper_config("[prior_map]\nparticles = 128\nhit_sigma_m = 0.3\nrestart_after = 3\n",
+                          "map.toml", papers_robot());
+  EXPECT_EQ(c.prior_map.particles, 128u);
+  EXPECT_EQ(c.prior_map.hit_sigma_m, 0.3);
+  EXPECT_EQ(c.prior_map.restart_after, 3u);
+  EXPECT_FALSE(c.prior_map.enabled) << "replay --prior-map turns it on";
+  EXPECT_NE(error_of("[prior_map]\nparticles = 4\n", papers_robot()).find("particles"),
+            std::string::npos);
+  EXPECT_NE(error_of("[prior_map]\nunmapped_share = 1.5\n", papers_robot()).find("unmapped_share"),
+            std::string::npos);
+  EXPECT_NE(error_of("[prior_map]\nenabled = true\n", papers_robot()).find("enabled"),
+            std::string::npos);
+}
+
 TEST(MapperConfigFile, ALevelOnlyRobotCannotTurnWallsFromLinesOff) {
   EXPECT_NE(error_of("[planes]\nwalls_from_lines = false\n", level_laser_robot())
                 .find("planes.walls_from_lines"),

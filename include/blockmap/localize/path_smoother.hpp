@@ -123,6 +123,7 @@ struct LoopClosure {
 struct PathSmootherCounters {
   std::uint64_t keyframes_added = 0;
   std::uint64_t fixes = 0;
+  std::uint64_t placings = 0;   // positions from a prior map (place())
   std::uint64_t thinnings = 0;  // the keyframes filled and every other one was merged
   std::uint64_t solves = 0;
   std::uint64_t refused = 0;           // add() with a time before the last keyframe's
@@ -155,6 +156,11 @@ class PathSmoother {
   // keyframe: correction() says how to move what was drawn then).
   void add(const Pose2& odometry, const Pose2& drawn, const std::optional<Eigen::Vector2d>& fix_m,
            double fix_sigma_scale = 1.0, GpsCorrection correction = GpsCorrection::kNone) noexcept;
+  // A keyframe at `odometry` whose position a prior map gave (MapLocalizer): position equals
+  // `position_m` with `information` (east, north; per square metre: zero along a bare
+  // street), and no receiver's slow error.
+  void place(const Pose2& odometry, const Pose2& drawn, const Eigen::Vector2d& position_m,
+             const Eigen::Matrix2d& information) noexcept;
 
   // Of the motion from the last keyframe to the next one, this much (and this long) the
   // odometry carried alone (no scan was matched over it): it is weighed with the odometry's
@@ -212,11 +218,21 @@ class PathSmoother {
     double weight = 0.0;  // 0: none
     void merge(double east, double north, double more_weight) noexcept;
   };
+  // A prior map's placings merged into a keyframe, as their normal equations: the summed
+  // information (xx, xy, yy) and the information times the placed position.
+  struct Placings {
+    double information[3] = {};
+    double moment[2] = {};
+    void merge(const Eigen::Vector2d& position_m, const Eigen::Matrix2d& more) noexcept;
+    // Another keyframe's, whose placed positions move by -by_m to this one.
+    void merge_moved(const Placings& other, const Eigen::Vector2d& by_m) noexcept;
+  };
   struct Keyframe {
     Pose2 odometry;                // as given
     Pose2 drawn;                   // as given
     FixMean code_fixes;            // position + slow error = fix
     FixMean carrier_fixes;         // position = fix (RTK)
+    Placings placings;             // position = a prior map's placings
     double state[5] = {};          // x, y, yaw, bx, by as solved
     double dead_reckoned_m = 0.0;  // of the motion from the keyframe before: odometry alone
     double dead_reckoned_s = 0.0;
@@ -264,11 +280,16 @@ class PathSmoother {
   };
 
   void append(const Pose2& odometry, const Pose2& drawn) noexcept;
+  // The keyframe at `odometry`'s time (made when the last is older) for a fix or a placing at
+  // `position_m`; the first of them moves the whole path there.
+  Keyframe& keyframe_placed_at(const Pose2& odometry, const Pose2& drawn,
+                               const Eigen::Vector2d& position_m) noexcept;
   void thin() noexcept;
   void accumulate_motion(std::size_t i) noexcept;
   void accumulate_receiver(std::size_t i) noexcept;
   void accumulate_fix(std::size_t i) noexcept;
   void accumulate_fix(std::size_t i, const FixMean& fixes, bool slow_error) noexcept;
+  void accumulate_placings(std::size_t i) noexcept;
   // How alike two ties are: the longer of the times between their earlier looks and between
   // their later looks (ties that close hold the same two stretches of path to each other), or
   // the most there is when their walls are not parallel (a corner's two walls hold the path

@@ -151,6 +151,13 @@ class Mapper {
   // Resuming from a snapshot, before the first message: the saved planes become the map's
   // final planes (reopened under their ids when seen again), and the buildings are fitted.
   void restore_planes(std::span<const map::SavedPlane> planes) noexcept;
+  // A prior 2D map's walls, at start-up ([prior_map] enabled): empty when it worked, else why
+  // not (its extent over the grid's capacity, no walls).
+  [[nodiscard]] std::string set_prior_map(std::span<const localize::MapWall> walls) {
+    return path_on_ && config_.prior_map.enabled
+               ? path_.set_prior_map(walls)
+               : std::string("the prior map needs [prior_map] enabled and the rigid path");
+  }
   [[nodiscard]] const planes::PlaneDetector& detector() const noexcept { return detector_; }
   [[nodiscard]] const localize::Localizer& localizer() const noexcept { return poses_.localizer(); }
   [[nodiscard]] const localize::ScanMatcher& scan_matcher() const noexcept {
@@ -160,6 +167,9 @@ class Mapper {
   [[nodiscard]] RigidPathCounters rigid_path_counters() const noexcept { return path_.counters(); }
   [[nodiscard]] const localize::LoopCloser& loop_closer() const noexcept {
     return path_.loop_closer();
+  }
+  [[nodiscard]] const localize::MapLocalizer& map_localizer() const noexcept {
+    return path_.map_localizer();
   }
   [[nodiscard]] bool rigid_path_on() const noexcept { return path_on_; }
   [[nodiscard]] const map::ProjectionCounters& projection(std::size_t laser) const noexcept {

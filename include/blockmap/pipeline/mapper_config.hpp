@@ -12,6 +12,7 @@
 #include "blockmap/localize/localizer.hpp"
 #include "blockmap/localize/loop_closer.hpp"
 #include "blockmap/localize/path_smoother.hpp"
+#include "blockmap/localize/prior_map.hpp"
 #include "blockmap/localize/scan_matcher.hpp"
 #include "blockmap/map/free_space_grid.hpp"
 #include "blockmap/map/plane_registry.hpp"
@@ -93,6 +94,10 @@ struct MapperConfig {
   // With the rigid path: revisits found by matching submaps of the level scans against the
   // earlier ones near them, each a constraint on the path (localize::LoopCloser).
   localize::LoopClosureConfig loop_closure;
+  // With the rigid path: Monte Carlo localization against a prior 2D map (its walls given to
+  // Mapper::set_prior_map() at start-up), whose placings hold the path beside or instead of
+  // the receiver's fixes (localize::MapLocalizer). Off unless a map is given.
+  localize::PriorMapConfig prior_map;
   // With the rigid path, the stream shows each plane where the latest solve puts it (every
   // 10 s of scan time; docs/localize.md, The rigid map as it goes), and the buildings are
   // fitted to the planes so: a plane is reported again when that moves it more than

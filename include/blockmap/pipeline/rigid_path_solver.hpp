@@ -8,10 +8,12 @@
 #include <array>
 #include <cstdint>
 #include <span>
+#include <string>
 
 #include "blockmap/core/arena.hpp"
 #include "blockmap/core/ring_buffer.hpp"
 #include "blockmap/localize/loop_closer.hpp"
+#include "blockmap/localize/map_localizer.hpp"
 #include "blockmap/localize/path_smoother.hpp"
 #include "blockmap/map/plane_registry.hpp"
 #include "blockmap/msg/plane_patch.hpp"
@@ -19,18 +21,33 @@
 namespace blockmap::pipeline {
 
 struct RigidPathCounters {
-  std::uint64_t fixes_dropped = 0;    // fixes that waited for a matched scan too long
-  std::uint64_t ties_other_side = 0;  // a wall paired with one seen from behind
-  std::uint64_t planes_moved = 0;     // final planes the end's solve moved
+  std::uint64_t fixes_dropped = 0;     // fixes that waited for a matched scan too long
+  std::uint64_t ties_other_side = 0;   // a wall paired with one seen from behind
+  std::uint64_t planes_moved = 0;      // final planes the end's solve moved
+  std::uint64_t placings_refused = 0;  // a prior map's placings far from the path
+  std::uint64_t map_restarts = 0;      // ... so many in a row that its particles started again
 };
 
 class RigidPathSolver final : public map::PlaneView {
  public:
   void init(Arena& arena, const localize::PathSmootherConfig& config,
-            const localize::LoopClosureConfig& loops);
+            const localize::LoopClosureConfig& loops, const localize::PriorMapConfig& prior_map);
   [[nodiscard]] static std::size_t arena_bytes(const localize::PathSmootherConfig& config,
-                                               const localize::LoopClosureConfig& loops) noexcept {
-    return localize::PathSmoother::arena_bytes(config) + localize::LoopCloser::arena_bytes(loops);
+                                               const localize::LoopClosureConfig& loops,
+                                               const localize::PriorMapConfig& prior_map) noexcept {
+    return localize::PathSmoother::arena_bytes(config) + localize::LoopCloser::arena_bytes(loops) +
+           localize::MapLocalizer::arena_bytes(prior_map);
+  }
+  // The robot started at a known pose, within these sigmas (no fix needed to place the
+  // path's start).
+  void start_placed(double sigma_m, double yaw_sigma_rad) noexcept {
+    starts_placed_ = true;
+    start_sigma_m_ = sigma_m;
+    start_yaw_sigma_rad_ = yaw_sigma_rad;
+  }
+  // The prior map's walls, at start-up (prior_map enabled): empty when it worked, else why not.
+  [[nodiscard]] std::string set_prior_map(std::span<const localize::MapWall> walls) {
+    return on_map_.set_map(walls);
   }
 
   // A fix the localizer took, as the robot frame's position: it waits for the first matched
@@ -74,14 +91,17 @@ class RigidPathSolver final : public map::PlaneView {
 
   [[nodiscard]] const localize::PathSmoother& path() const noexcept { return path_; }
   [[nodiscard]] const localize::LoopCloser& loop_closer() const noexcept { return closer_; }
+  [[nodiscard]] const localize::MapLocalizer& map_localizer() const noexcept { return on_map_; }
   [[nodiscard]] RigidPathCounters counters() const noexcept {
-    return {fixes_.dropped_oldest().value(), ties_other_side_, planes_moved_};
+    return {fixes_.dropped_oldest().value(), ties_other_side_, planes_moved_, placings_refused_,
+            map_restarts_};
   }
 
  private:
-  // Whether anything but the odometry says where the path lies: fixes or loop closures.
+  // Whether anything but the odometry says where the path lies: fixes, a prior map's
+  // placings or loop closures.
   [[nodiscard]] bool placed() const noexcept {
-    return path_.counters().fixes > 0 || path_.closure_count() > 0;
+    return path_.counters().fixes > 0 || path_.counters().placings > 0 || path_.closure_count() > 0;
   }
   // The first keyframe stamped at or after `stamp_ns` (keyframe_count() when none is).
   [[nodiscard]] std::size_t first_keyframe_from(TimestampNs stamp_ns) const noexcept;
@@ -95,6 +115,25 @@ class RigidPathSolver final : public map::PlaneView {
   // Revisits found by matching submaps, as constraints on path_.
   localize::LoopCloser closer_;
   std::array<localize::LoopClosure, localize::kMaxClosureCandidates> found_{};
+  // Where a prior map puts the robot (Monte Carlo localization), as placings on path_.
+  localize::MapLocalizer on_map_;
+  double start_after_m_ = 0.0;
+  double placing_gate_m_ = 0.0;
+  std::uint32_t restart_after_ = 0;
+  std::uint32_t refused_in_a_row_ = 0;
+  std::uint64_t placings_refused_ = 0;
+  std::uint64_t map_restarts_ = 0;
+  double start_sigma_m_ = 0.0;  // where the map localizer's particles start
+  double start_yaw_sigma_rad_ = 0.0;
+  double travelled_m_ = 0.0;         // the path's length so far
+  double solved_travelled_m_ = 0.0;  // ... at the last solve
+  bool starts_placed_ = false;
+  // The map localizer at a matched scan: started once the path is placed, then its placings.
+  void localize_on_map(const localize::Pose2& in_path, const localize::Pose2& drawn_at,
+                       std::span<const Eigen::Vector2d> match_points_m) noexcept;
+  // Its particles again around the solved path's pose `solved` (at the path's `in_path`).
+  void restart_map_localizer(const localize::Pose2& solved,
+                             const localize::Pose2& in_path) noexcept;
   RingBuffer<localize::GpsObservation, 64> fixes_;  // waiting for a matched scan
   TimestampNs next_solve_ns_ = 0;
   bool solved_ = false;

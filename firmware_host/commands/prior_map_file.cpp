@@ -1,0 +1,133 @@
+#include "commands/prior_map_file.hpp"
+
+#include <filesystem>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+namespace blockmap::cli {
+namespace {
+
+using Json = nlohmann::json;
+
+// A position [longitude, latitude(, height)] in the local frame.
+Eigen::Vector2d local_of(const Json& position, const hal::LocalEnuFrame& frame) {
+  if (!position.is_array() || position.size() < 2 || !position[0].is_number() ||
+      !position[1].is_number()) {
+    throw std::runtime_error("a position is not [longitude, latitude]");
+  }
+  const double longitude = position[0].get<double>();
+  const double latitude = position[1].get<double>();
+  if (!(std::abs(latitude) <= 90.0) || !(std::abs(longitude) <= 180.0)) {
+    throw std::runtime_error("a position is not on Earth");
+  }
+  const Eigen::Vector3d enu =
+      frame.to_enu_m(hal::GeodeticPoint{latitude, longitude, frame.origin().height_m});
+  return enu.head<2>();
+}
+
+// Each consecutive pair of a line's positions is a wall; a polygon's rings enclose.
+void add_line(const Json& positions, const hal::LocalEnuFrame& frame, bool ring,
+              std::vector<localize::MapWall>& walls) {
+  if (!positions.is_array()) {
+    throw std::runtime_error("a line's coordinates are not an array");
+  }
+  for (std::size_t k = 1; k < positions.size(); ++k) {
+    walls.push_back({local_of(positions[k - 1], frame), local_of(positions[k], frame), ring});
+  }
+}
+
+void add_geometry(const Json& geometry, const hal::LocalEnuFrame& frame,
+                  std::vector<localize::MapWall>& walls) {
+  const std::string type = geometry.value("type", "");
+  if (type == "GeometryCollection") {
+    for (const Json& part : geometry.at("geometries")) {
+      add_geometry(part, frame, walls);
+    }
+    return;
+  }
+  const Json& coordinates = geometry.at("coordinates");
+  if (type == "LineString") {
+    add_line(coordinates, frame, false, walls);
+  } else if (type == "MultiLineString" || type == "Polygon") {
+    for (const Json& line : coordinates) {
+      add_line(line, frame, type == "Polygon", walls);
+    }
+  } else if (type == "MultiPolygon") {
+    for (const Json& polygon : coordinates) {
+      for (const Json& ring : polygon) {
+        add_line(ring, frame, true, walls);
+      }
+    }
+  }  // points have no walls
+}
+
+void add_geojson(const Json& document, const hal::LocalEnuFrame& frame,
+                 std::vector<localize::MapWall>& walls) {
+  const std::string type = document.value("type", "");
+  if (type == "FeatureCollection") {
+    for (const Json& feature : document.at("features")) {
+      add_geojson(feature, frame, walls);
+    }
+  } else if (type == "Feature") {
+    if (!document.at("geometry").is_null()) {
+      add_geometry(document.at("geometry"), frame, walls);
+    }
+  } else {
+    add_geometry(document, frame, walls);
+  }
+}
+
+Eigen::Vector2d point_of(const Json& xy) {
+  if (!xy.is_array() || xy.size() < 2 || !xy[0].is_number() || !xy[1].is_number()) {
+    throw std::runtime_error("a footprint's corner is not [x, y]");
+  }
+  return {xy[0].get<double>(), xy[1].get<double>()};
+}
+
+// buildings.json: the footprints a run fitted (closed: their unseen walls are the fitter's
+// guess, but what they enclose is a building).
+void add_buildings(const Json& document, std::vector<localize::MapWall>& walls) {
+  for (const Json& building : document.at("buildings")) {
+    const Json& footprint = building.at("footprint");
+    for (std::size_t k = 0; footprint.size() >= 3 && k < footprint.size(); ++k) {
+      walls.push_back(
+          {point_of(footprint[k]), point_of(footprint[(k + 1) % footprint.size()]), true});
+    }
+  }
+}
+
+}  // namespace
+
+std::vector<localize::MapWall> read_prior_map(const std::string& path,
+                                              const hal::LocalEnuFrame& frame, std::string& error) {
+  std::vector<localize::MapWall> walls;
+  std::error_code code;
+  if (!std::filesystem::is_regular_file(path, code)) {
+    error = path + " is not a file";
+    return walls;
+  }
+  std::ifstream in(path);
+  const Json document = Json::parse(in, nullptr, false);
+  if (document.is_discarded() || !document.is_object()) {
+    error = path + " is not a JSON object (GeoJSON or buildings.json)";
+    return walls;
+  }
+  try {
+    if (document.contains("buildings")) {
+      add_buildings(document, walls);
+    } else {
+      add_geojson(document, frame, walls);
+    }
+  } catch (const std::exception& e) {
+    error = path + ": not a prior map: " + e.what();
+    walls.clear();
+    return walls;
+  }
+  if (walls.empty()) {
+    error = path + " holds no wall (no line or polygon)";
+  }
+  return walls;
+}
+
+}  // namespace blockmap::cli
