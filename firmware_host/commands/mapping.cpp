@@ -216,16 +216,20 @@ void MappingSession::report(std::ostream& err, double data_s) const {
     const localize::MapLocalizer& on_map = mapper_.map_localizer();
     if (on_map.ready()) {
       const localize::MapLocalizerCounters& m = on_map.counters();
+      const pipeline::RigidPathCounters guards = mapper_.rigid_path_counters();
       std::snprintf(text, sizeof text,
-                    "prior map: %zu walls, %llu scans weighed, %llu placings (%llu updates "
-                    "with the particles apart, %llu with the returns off its walls, %llu whose "
-                    "walls pinned nothing), %llu resamplings\n",
+                    "prior map: %zu walls, %llu scans weighed, %llu placings (%llu refused as "
+                    "far from the path; not given: %llu updates with the particles apart, %llu "
+                    "with the returns off its walls, %llu whose walls pinned nothing), %llu "
+                    "resamplings, %llu restarts\n",
                     on_map.map().wall_count(), static_cast<unsigned long long>(m.updates),
                     static_cast<unsigned long long>(m.placings),
+                    static_cast<unsigned long long>(guards.placings_refused),
                     static_cast<unsigned long long>(m.spread_too_wide),
                     static_cast<unsigned long long>(m.off_the_map),
                     static_cast<unsigned long long>(m.unpinned),
-                    static_cast<unsigned long long>(m.resamplings));
+                    static_cast<unsigned long long>(m.resamplings),
+                    static_cast<unsigned long long>(guards.map_restarts));
       err << text;
     }
   }
