@@ -200,13 +200,8 @@ Pose2 MapLocalizer::estimate() const noexcept {
     c += w * std::cos(p.yaw_rad);
     s += w * std::sin(p.yaw_rad);
   }
-  Pose2 mean = last_pose_;
-  if (total > 0.0) {
-    mean.x_m = x / total;
-    mean.y_m = y / total;
-    mean.yaw_rad = std::atan2(s, c);
-  }
-  return mean;
+  // The best particle's weight is 1 after every weighing (weigh()): total is never 0.
+  return {last_pose_.stamp_ns, x / total, y / total, std::atan2(s, c)};
 }
 
 Eigen::Matrix2d MapLocalizer::spread(const Pose2& mean) const noexcept {

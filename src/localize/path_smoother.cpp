@@ -117,8 +117,7 @@ void PathSmoother::FixMean::merge(double east, double north, double more_weight)
 void PathSmoother::add(const Pose2& odometry, const Pose2& drawn,
                        const std::optional<Eigen::Vector2d>& fix_m, double fix_sigma_scale,
                        GpsCorrection correction) noexcept {
-  if (count_ > 0 && odometry.stamp_ns < keyframes_[count_ - 1].odometry.stamp_ns) {
-    ++counters_.refused;
+  if (refuses(odometry)) {
     return;
   }
   if (fix_m.has_value()) {
@@ -169,13 +168,18 @@ void PathSmoother::Placings::merge_moved(const Placings& other,
 void PathSmoother::place(const Pose2& odometry, const Pose2& drawn,
                          const Eigen::Vector2d& position_m,
                          const Eigen::Matrix2d& information) noexcept {
-  if (count_ > 0 && odometry.stamp_ns < keyframes_[count_ - 1].odometry.stamp_ns) {
-    ++counters_.refused;
+  if (refuses(odometry)) {
     return;
   }
   Keyframe& keyframe = keyframe_placed_at(odometry, drawn, position_m);
   keyframe.placings.merge(position_m, information);
   ++counters_.placings;
+}
+
+bool PathSmoother::refuses(const Pose2& odometry) noexcept {
+  const bool older = count_ > 0 && odometry.stamp_ns < keyframes_[count_ - 1].odometry.stamp_ns;
+  counters_.refused += older ? 1 : 0;
+  return older;
 }
 
 PathSmoother::Keyframe& PathSmoother::keyframe_placed_at(

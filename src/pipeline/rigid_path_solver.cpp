@@ -54,9 +54,6 @@ void RigidPathSolver::init(Arena& arena, const localize::PathSmootherConfig& con
   path_.init(arena, config);
   closer_.init(arena, loops);
   on_map_.init(arena, prior_map);
-  start_after_m_ = prior_map.start_after_m;
-  placing_gate_m_ = prior_map.placing_gate_m;
-  restart_after_ = prior_map.restart_after;
   if (!starts_placed_) {
     start_sigma_m_ = prior_map.start_sigma_m;
     start_yaw_sigma_rad_ = prior_map.start_yaw_sigma_deg * kRadiansPerDegree;
@@ -69,31 +66,33 @@ void RigidPathSolver::localize_on_map(const localize::Pose2& in_path,
   if (!on_map_.ready()) {
     return;
   }
+  const localize::PriorMapConfig& config = on_map_.config();
   if (!on_map_.started()) {
     // The path's own frame is the matcher's, turned anyhow: the particles start in the local
     // frame, where the solved path puts the robot once it is placed.
-    if (starts_placed_ || (path_.counters().fixes > 0 && solved_travelled_m_ >= start_after_m_)) {
+    if (starts_placed_ ||
+        (path_.counters().fixes > 0 && solved_travelled_m_ >= config.start_after_m)) {
       on_map_.start(path_.solved_pose(in_path), in_path, start_sigma_m_, start_yaw_sigma_rad_);
     }
     return;
   }
   localize::MapPlacing placing;
   const bool placed_here = on_map_.add_scan(in_path, match_points_m, placing);
-  const localize::Pose2 solved = path_.solved_pose(in_path);
   if (on_map_.lost()) {
-    restart_map_localizer(solved, in_path);
+    restart_map_localizer(in_path);
     return;
   }
   if (!placed_here) {
     return;
   }
+  const localize::Pose2 solved = path_.solved_pose(in_path);
   const double gate_m = path_.counters().placings > 0
-                            ? placing_gate_m_
-                            : std::max(placing_gate_m_, 3.0 * start_sigma_m_);
+                            ? config.placing_gate_m
+                            : std::max(config.placing_gate_m, 3.0 * start_sigma_m_);
   if (std::hypot(placing.pose.x_m - solved.x_m, placing.pose.y_m - solved.y_m) > gate_m) {
     ++placings_refused_;
-    if (++refused_in_a_row_ >= restart_after_) {
-      restart_map_localizer(solved, in_path);
+    if (++refused_in_a_row_ >= config.restart_after) {
+      restart_map_localizer(in_path);
     }
     return;
   }
@@ -102,9 +101,9 @@ void RigidPathSolver::localize_on_map(const localize::Pose2& in_path,
               placing.information);
 }
 
-void RigidPathSolver::restart_map_localizer(const localize::Pose2& solved,
-                                            const localize::Pose2& in_path) noexcept {
-  on_map_.start(solved, in_path, std::max(start_sigma_m_, placing_gate_m_ / 3.0),
+void RigidPathSolver::restart_map_localizer(const localize::Pose2& in_path) noexcept {
+  on_map_.start(path_.solved_pose(in_path), in_path,
+                std::max(start_sigma_m_, on_map_.config().placing_gate_m / 3.0),
                 start_yaw_sigma_rad_);
   refused_in_a_row_ = 0;
   ++map_restarts_;

@@ -52,6 +52,7 @@ class MapLocalizer {
   [[nodiscard]] std::string set_map(std::span<const MapWall> walls) { return map_.build(walls); }
   [[nodiscard]] bool ready() const noexcept { return config_.enabled && map_.built(); }
   [[nodiscard]] const PriorMap& map() const noexcept { return map_; }
+  [[nodiscard]] const PriorMapConfig& config() const noexcept { return config_; }
 
   // The particles drawn around `local_pose` by these sigmas: the robot's pose in the local
   // frame as the path has it now, at the path's pose `path_pose`.

@@ -280,6 +280,8 @@ class PathSmoother {
   };
 
   void append(const Pose2& odometry, const Pose2& drawn) noexcept;
+  // Whether `odometry` is older than the last keyframe (refused, counted).
+  bool refuses(const Pose2& odometry) noexcept;
   // The keyframe at `odometry`'s time (made when the last is older) for a fix or a placing at
   // `position_m`; the first of them moves the whole path there.
   Keyframe& keyframe_placed_at(const Pose2& odometry, const Pose2& drawn,

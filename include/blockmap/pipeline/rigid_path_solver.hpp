@@ -110,6 +110,11 @@ class RigidPathSolver final : public map::PlaneView {
   bool keyframe_that_drew(const Eigen::Vector2d& point_m, TimestampNs from_ns, TimestampNs to_ns,
                           const map::SeenSpans* seen, TimestampNs& stamp_ns,
                           Eigen::Vector2d& from_m) const noexcept;
+  // The map localizer at a matched scan: started once the path is placed, then its placings.
+  void localize_on_map(const localize::Pose2& in_path, const localize::Pose2& drawn_at,
+                       std::span<const Eigen::Vector2d> match_points_m) noexcept;
+  // Its particles again around the solved path's pose at `in_path`.
+  void restart_map_localizer(const localize::Pose2& in_path) noexcept;
 
   localize::PathSmoother path_;
   // Revisits found by matching submaps, as constraints on path_.
@@ -117,9 +122,6 @@ class RigidPathSolver final : public map::PlaneView {
   std::array<localize::LoopClosure, localize::kMaxClosureCandidates> found_{};
   // Where a prior map puts the robot (Monte Carlo localization), as placings on path_.
   localize::MapLocalizer on_map_;
-  double start_after_m_ = 0.0;
-  double placing_gate_m_ = 0.0;
-  std::uint32_t restart_after_ = 0;
   std::uint32_t refused_in_a_row_ = 0;
   std::uint64_t placings_refused_ = 0;
   std::uint64_t map_restarts_ = 0;
@@ -128,12 +130,6 @@ class RigidPathSolver final : public map::PlaneView {
   double travelled_m_ = 0.0;         // the path's length so far
   double solved_travelled_m_ = 0.0;  // ... at the last solve
   bool starts_placed_ = false;
-  // The map localizer at a matched scan: started once the path is placed, then its placings.
-  void localize_on_map(const localize::Pose2& in_path, const localize::Pose2& drawn_at,
-                       std::span<const Eigen::Vector2d> match_points_m) noexcept;
-  // Its particles again around the solved path's pose `solved` (at the path's `in_path`).
-  void restart_map_localizer(const localize::Pose2& solved,
-                             const localize::Pose2& in_path) noexcept;
   RingBuffer<localize::GpsObservation, 64> fixes_;  // waiting for a matched scan
   TimestampNs next_solve_ns_ = 0;
   bool solved_ = false;
