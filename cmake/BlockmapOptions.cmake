@@ -6,6 +6,8 @@ option(BLOCKMAP_WORLD_TESTS_ONLY
 option(BLOCKMAP_BUILD_BENCHMARKS "Build Google Benchmark programs (host only)" OFF)
 option(BLOCKMAP_BUILD_PEER_BENCHMARKS
        "Build the peer benchmark (PCL, CGAL, Open3D; scripts/bench-peers installs them)" OFF)
+option(BLOCKMAP_BUILD_SOLVER_BENCHMARKS
+       "Build the path solvers' benchmark (Ceres; scripts/bench-solvers installs it)" OFF)
 option(BLOCKMAP_SANITIZE "Build with AddressSanitizer and UndefinedBehaviorSanitizer" OFF)
 option(BLOCKMAP_BUILD_FUZZERS "Build libFuzzer targets for the protocol codecs (clang only)" OFF)
 # Unity builds: the test trees' sources compiled eight to a unit, so that GoogleTest's, Eigen's and

@@ -18,28 +18,6 @@
 namespace blockmap::localize {
 namespace {
 
-// The drive's odometry dead-reckoned with its scale and gyroscope bias taken out but for
-// what calibration leaves (0.2 % of distance, `left_bias_radps` of turn rate), from the true
-// start: the shape a calibrated dead reckoning or a scan matcher gives.
-std::vector<Pose2> calibrated_odometry(const std::vector<synthetic::Sample>& samples,
-                                       const synthetic::DriveOptions& drive,
-                                       double left_bias_radps) {
-  std::vector<Pose2> odometry;
-  odometry.reserve(samples.size());
-  Pose2 pose{0, 0.0, 0.0, 0.6};
-  for (const synthetic::Sample& s : samples) {
-    const double dt_s = 0.01;
-    const double distance_m = s.distance_m / drive.distance_scale * 1.002;
-    const double turn_rad = (s.yaw_rate_radps - drive.yaw_rate_bias_radps + left_bias_radps) * dt_s;
-    pose.x_m += distance_m * std::cos(pose.yaw_rad + 0.5 * turn_rad);
-    pose.y_m += distance_m * std::sin(pose.yaw_rad + 0.5 * turn_rad);
-    pose.yaw_rad = std::remainder(pose.yaw_rad + turn_rad, 2.0 * synthetic::kPi);
-    pose.stamp_ns = s.stamp_ns;
-    odometry.push_back(pose);
-  }
-  return odometry;
-}
-
 struct SmoothedErrors {
   double rms_m = 0.0;        // against the truth, at every keyframe after the first minute
   double shape_rms_m = 0.0;  // the same with the path's mean error taken out
@@ -111,8 +89,8 @@ TEST(PathSmoother, TheWholePathSitsWhereTheRunsFixesPutItOnAverage) {
     const std::vector<synthetic::Sample> samples = synthetic::drive(drive);
     SmootherFixture fixture;
     // Scored from the start: the run's mean receiver error is over every fix.
-    const SmoothedErrors e =
-        smooth_drive(fixture.smoother, samples, calibrated_odometry(samples, drive, 1e-4), 0.0);
+    const SmoothedErrors e = smooth_drive(
+        fixture.smoother, samples, synthetic::calibrated_odometry(samples, drive, 1e-4), 0.0);
     std::printf(
         "seed %llu: GPS %.2f m RMS, its mean error (%.2f, %.2f) m; smoothed %.2f m RMS, "
         "mean (%.2f, %.2f) m, shape %.2f m RMS; %zu keyframes\n",
@@ -139,7 +117,7 @@ TEST(PathSmoother, RtkFixesPinThePathToCentimetres) {
   drive.gps_multipath_rms_m = 0.015;
   drive.gps_correction = GpsCorrection::kRtkFixed;
   const std::vector<synthetic::Sample> samples = synthetic::drive(drive);
-  const std::vector<Pose2> odometry = calibrated_odometry(samples, drive, 1e-3);
+  const std::vector<Pose2> odometry = synthetic::calibrated_odometry(samples, drive, 1e-3);
   SmootherFixture rtk;
   const SmoothedErrors pinned = smooth_drive(rtk.smoother, samples, odometry, 0.0);
   std::vector<synthetic::Sample> as_code = samples;
@@ -163,7 +141,7 @@ TEST(PathSmoother, ItIsBetterThanTheParticleFiltersSmoothedPathOnTheSameDrive) {
   const synthetic::RunErrors filtered = synthetic::run(filter.filter, samples, drive);
   SmootherFixture fixture;
   const SmoothedErrors e =
-      smooth_drive(fixture.smoother, samples, calibrated_odometry(samples, drive, 1e-4));
+      smooth_drive(fixture.smoother, samples, synthetic::calibrated_odometry(samples, drive, 1e-4));
   std::printf("filter smoothed %.2f m RMS, path smoother %.2f m RMS (GPS %.2f m)\n",
               filtered.smoothed_rms_m, e.rms_m, e.gps_rms_m);
   EXPECT_LT(e.rms_m, 0.75 * filtered.smoothed_rms_m);
@@ -177,13 +155,13 @@ TEST(PathSmoother, AnOutageIsBridgedByTheOdometry) {
   const std::vector<synthetic::Sample> samples = synthetic::drive(drive);
   SmootherFixture fixture;
   const SmoothedErrors e =
-      smooth_drive(fixture.smoother, samples, calibrated_odometry(samples, drive, 1e-4));
+      smooth_drive(fixture.smoother, samples, synthetic::calibrated_odometry(samples, drive, 1e-4));
   synthetic::DriveOptions whole = drive;
   whole.outage_from_s = whole.outage_to_s = -1.0;
   const std::vector<synthetic::Sample> with_fixes = synthetic::drive(whole);
   SmootherFixture reference;
-  const SmoothedErrors r =
-      smooth_drive(reference.smoother, with_fixes, calibrated_odometry(with_fixes, whole, 1e-4));
+  const SmoothedErrors r = smooth_drive(reference.smoother, with_fixes,
+                                        synthetic::calibrated_odometry(with_fixes, whole, 1e-4));
   std::printf("a minute without GPS: smoothed %.2f m RMS, shape %.2f m; with it %.2f m, %.2f m\n",
               e.rms_m, e.shape_rms_m, r.rms_m, r.shape_rms_m);
   EXPECT_LT(e.shape_rms_m, r.shape_rms_m + 0.35);
@@ -201,7 +179,7 @@ TEST(PathSmoother, AFullPathIsThinnedAndStillSolved) {
   config.max_keyframes = 256;  // 1,200 fixes: thinned three times
   SmootherFixture fixture(config);
   const SmoothedErrors e =
-      smooth_drive(fixture.smoother, samples, calibrated_odometry(samples, drive, 1e-4));
+      smooth_drive(fixture.smoother, samples, synthetic::calibrated_odometry(samples, drive, 1e-4));
   std::printf("256 keyframes: %zu kept, %llu thinnings, smoothed %.2f m RMS, shape %.2f m\n",
               fixture.smoother.keyframe_count(),
               static_cast<unsigned long long>(fixture.smoother.counters().thinnings), e.rms_m,

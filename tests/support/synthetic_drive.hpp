@@ -2,7 +2,8 @@
 // loop at 1.2 m/s with the simulator's error models (tyre scale, gyroscope bias and noise,
 // slip, a GPS error of 2 m RMS: 1.6 m of multipath correlated over 2 s and 1.2 m that wanders
 // with a 60 s correlation time, as config/robots/paper_rmp.toml), and the scoring of a
-// filter run over it. Shared by tests/localize and the accuracy-versus-particles benchmark.
+// filter run over it. Shared by tests/localize, the accuracy-versus-particles benchmark and the
+// path solvers' benchmark (tests/bench/solvers).
 #pragma once
 
 #include <algorithm>
@@ -109,6 +110,27 @@ inline std::vector<Sample> drive(const DriveOptions& options) {
     samples.push_back(s);
   }
   return samples;
+}
+
+// The drive's odometry dead-reckoned with its scale and gyroscope bias taken out but for
+// what calibration leaves (0.2 % of distance, `left_bias_radps` of turn rate), from the true
+// start: the shape a calibrated dead reckoning or a scan matcher gives.
+inline std::vector<Pose2> calibrated_odometry(const std::vector<Sample>& samples,
+                                              const DriveOptions& drive, double left_bias_radps) {
+  std::vector<Pose2> odometry;
+  odometry.reserve(samples.size());
+  Pose2 pose{0, 0.0, 0.0, 0.6};
+  for (const Sample& s : samples) {
+    const double dt_s = 0.01;
+    const double distance_m = s.distance_m / drive.distance_scale * 1.002;
+    const double turn_rad = (s.yaw_rate_radps - drive.yaw_rate_bias_radps + left_bias_radps) * dt_s;
+    pose.x_m += distance_m * std::cos(pose.yaw_rad + 0.5 * turn_rad);
+    pose.y_m += distance_m * std::sin(pose.yaw_rad + 0.5 * turn_rad);
+    pose.yaw_rad = std::remainder(pose.yaw_rad + turn_rad, 2.0 * kPi);
+    pose.stamp_ns = s.stamp_ns;
+    odometry.push_back(pose);
+  }
+  return odometry;
 }
 
 struct FilterFixture {
