@@ -146,6 +146,47 @@ std::vector<TimedPosition> read_trajectory(const fs::path& path) {
   return path_m;
 }
 
+// The receiver's mean horizontal error over the run (truth_gps.csv beside truth.json: every
+// epoch with a fix), and how many fixes; none when the file is not there.
+struct ReceiverError {
+  std::size_t fixes = 0;
+  Eigen::Vector2d mean_m = Eigen::Vector2d::Zero();
+};
+
+ReceiverError read_receiver_error(const fs::path& path) {
+  ReceiverError receiver;
+  std::ifstream file(path);
+  if (!file) {
+    return receiver;
+  }
+  std::string line;
+  std::getline(file, line);  // the header
+  Eigen::Vector2d sum_m = Eigen::Vector2d::Zero();
+  for (std::size_t row = 2; std::getline(file, line); ++row) {
+    std::istringstream fields(line);
+    double t_s = 0.0;
+    Eigen::Vector3d antenna_m;
+    Eigen::Vector3d error_m;
+    double satellites = 0.0;
+    double hdop = 0.0;
+    int fix = 0;
+    char comma = 0;
+    if (!(fields >> t_s >> comma >> antenna_m.x() >> comma >> antenna_m.y() >> comma >>
+          antenna_m.z() >> comma >> error_m.x() >> comma >> error_m.y() >> comma >> error_m.z() >>
+          comma >> satellites >> comma >> hdop >> comma >> fix)) {
+      throw std::runtime_error(path.string() + ":" + std::to_string(row) + ": not an epoch row");
+    }
+    if (fix == 1) {
+      sum_m += error_m.head<2>();
+      ++receiver.fixes;
+    }
+  }
+  if (receiver.fixes > 0) {
+    receiver.mean_m = sum_m / static_cast<double>(receiver.fixes);
+  }
+  return receiver;
+}
+
 // The height of `path_m` at `t_s`, linearly between its poses (its ends beyond them).
 double height_at(const std::vector<TimedPosition>& path_m, double t_s) {
   const auto later =
@@ -262,15 +303,39 @@ nlohmann::json path_error_json(const hal::sim::PathAlignment& path) {
           {"max_m", path.max_m}};
 }
 
-nlohmann::json score_json(const std::string& path_file, const hal::sim::PathAlignment& path,
-                          const hal::sim::PathAlignment& matched,
-                          const hal::sim::PlaneScore& planes, const BuildingScore& buildings) {
+// Everything scored, for one line each or one JSON object.
+struct Score {
+  std::string path_file;
+  hal::sim::PathAlignment path;
+  hal::sim::PathAlignment matched;
+  ReceiverError receiver;
+  hal::sim::PlaneScore planes;
+  BuildingScore buildings;
+};
+
+// Issue 54's bound on where the map sits: no farther off than the receiver's mean error over
+// the run, plus this.
+constexpr double kOffsetAllowanceM = 0.3;
+
+nlohmann::json score_json(const Score& score) {
+  const hal::sim::PathAlignment& path = score.path;
+  const hal::sim::PlaneScore& planes = score.planes;
+  const BuildingScore& buildings = score.buildings;
   nlohmann::json path_json = path_error_json(path);
-  path_json["file"] = path_file;
+  path_json["file"] = score.path_file;
   path_json["alignment"] = {{"yaw_deg", path.yaw_rad / kRadiansPerDegree},
-                            {"shift_m", {path.shift_m.x(), path.shift_m.y(), path.shift_m.z()}}};
+                            {"shift_m", {path.shift_m.x(), path.shift_m.y(), path.shift_m.z()}},
+                            {"offset_m", {path.offset_m.x(), path.offset_m.y()}}};
+  nlohmann::json receiver_json = nullptr;
+  if (score.receiver.fixes > 0) {
+    receiver_json = {{"fixes", score.receiver.fixes},
+                     {"mean_error_m", {score.receiver.mean_m.x(), score.receiver.mean_m.y()}},
+                     {"offset_within",
+                      path.offset_m.norm() <= score.receiver.mean_m.norm() + kOffsetAllowanceM}};
+  }
   return {{"path", path_json},
-          {"matched_path", path_error_json(matched)},
+          {"receiver", receiver_json},
+          {"matched_path", path_error_json(score.matched)},
           {"planes",
            {{"walls_found", planes.walls_found},
             {"walls", planes.walls_considered},
@@ -285,16 +350,33 @@ nlohmann::json score_json(const std::string& path_file, const hal::sim::PathAlig
             {"mean_iou", buildings.mean_iou}}}};
 }
 
-void print_score(std::ostream& out, const std::string& path_file,
-                 const hal::sim::PathAlignment& path, const hal::sim::PathAlignment& matched,
-                 const hal::sim::PlaneScore& planes, const BuildingScore& buildings) {
+void print_score(std::ostream& out, const Score& score) {
+  const hal::sim::PathAlignment& path = score.path;
+  const hal::sim::PathAlignment& matched = score.matched;
+  const hal::sim::PlaneScore& planes = score.planes;
+  const BuildingScore& buildings = score.buildings;
   char line[240];
   std::snprintf(line, sizeof line,
                 "path (%s): %zu poses; laid onto the truth by %.2f deg and (%.2f %.2f %.2f) m; "
                 "after it %.3f m RMS, median %.3f m, worst %.3f m\n",
-                path_file.c_str(), path.pairs, path.yaw_rad / kRadiansPerDegree, path.shift_m.x(),
-                path.shift_m.y(), path.shift_m.z(), path.rms_m, path.median_m, path.max_m);
+                score.path_file.c_str(), path.pairs, path.yaw_rad / kRadiansPerDegree,
+                path.shift_m.x(), path.shift_m.y(), path.shift_m.z(), path.rms_m, path.median_m,
+                path.max_m);
   out << line;
+  std::snprintf(line, sizeof line, "where the map sits: its path %.2f m (%.2f %.2f) from the truth",
+                path.offset_m.norm(), path.offset_m.x(), path.offset_m.y());
+  out << line;
+  if (score.receiver.fixes > 0) {
+    const double mean_m = score.receiver.mean_m.norm();
+    std::snprintf(line, sizeof line,
+                  "; the receiver's mean error %.2f m (%.2f %.2f) over %zu fixes: %s\n", mean_m,
+                  score.receiver.mean_m.x(), score.receiver.mean_m.y(), score.receiver.fixes,
+                  path.offset_m.norm() <= mean_m + kOffsetAllowanceM ? "within it + 0.3 m"
+                                                                     : "beyond it + 0.3 m");
+    out << line;
+  } else {
+    out << '\n';
+  }
   if (matched.pairs > 0) {
     std::snprintf(line, sizeof line,
                   "matched path (the scan matcher's, laid on by itself): %.3f m RMS, median "
@@ -324,7 +406,10 @@ int run_score(const ScoreOptions& options, std::ostream& out, std::ostream& err)
     }
     const Truth truth = read_truth(truth_path);
     const Estimate estimate = read_estimate(options.map);
-    const hal::sim::PathAlignment path = hal::sim::align_path(estimate.path, truth.path);
+    Score score;
+    score.path_file = estimate.path_file;
+    score.path = hal::sim::align_path(estimate.path, truth.path);
+    const hal::sim::PathAlignment& path = score.path;
     if (path.pairs == 0) {
       err << "blockmap: score: " << options.map << '/' << estimate.path_file
           << " has no pose within the truth's time span\n";
@@ -334,15 +419,16 @@ int run_score(const ScoreOptions& options, std::ostream& out, std::ostream& err)
     for (const msg::PlanePatch& plane : estimate.planes) {
       moved.push_back(path.apply(plane));
     }
-    const hal::sim::PlaneScore planes = hal::sim::score_planes(truth.faces, moved);
-    const BuildingScore buildings = score_buildings(truth, estimate, path);
-    const hal::sim::PathAlignment matched =
-        estimate.matched.empty() ? hal::sim::PathAlignment{}
-                                 : hal::sim::align_path(estimate.matched, truth.path);
+    score.planes = hal::sim::score_planes(truth.faces, moved);
+    score.buildings = score_buildings(truth, estimate, path);
+    if (!estimate.matched.empty()) {
+      score.matched = hal::sim::align_path(estimate.matched, truth.path);
+    }
+    score.receiver = read_receiver_error(truth_path.parent_path() / "truth_gps.csv");
     if (options.json) {
-      out << score_json(estimate.path_file, path, matched, planes, buildings).dump() << '\n';
+      out << score_json(score).dump() << '\n';
     } else {
-      print_score(out, estimate.path_file, path, matched, planes, buildings);
+      print_score(out, score);
     }
     return kExitOk;
   } catch (const std::exception& error) {

@@ -227,6 +227,7 @@ PathAlignment align_path(std::span<const TimedPosition> estimated,
     cross += a.x() * b.y() - a.y() * b.x();
   }
   alignment.yaw_rad = std::atan2(cross, dot);
+  alignment.offset_m = (from_mean - to_mean).head<2>();
   alignment.shift_m =
       to_mean - Eigen::AngleAxisd(alignment.yaw_rad, Eigen::Vector3d::UnitZ()) * from_mean;
   std::vector<double> errors_m;

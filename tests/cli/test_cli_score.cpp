@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -58,6 +59,18 @@ TEST_F(ScoreCommand, ScoresAReplaysMapAfterLayingItsPathOntoTheTruth) {
   EXPECT_LT(score["matched_path"]["rms_m"].get<double>(), 1.0);
   EXPECT_GE(score["path"]["max_m"].get<double>(), score["path"]["median_m"].get<double>());
   EXPECT_LT(std::abs(score["path"]["alignment"]["yaw_deg"].get<double>()), 10.0);
+  // Where the map sits, against the receiver's mean error over the run (truth_gps.csv): the
+  // rigid path sits where its fixes put it on average, whatever the origin.
+  const nlohmann::json& offset = score["path"]["alignment"]["offset_m"];
+  const nlohmann::json& mean_error = score["receiver"]["mean_error_m"];
+  EXPECT_GT(score["receiver"]["fixes"].get<int>(), 200);  // 4 Hz over a minute
+  EXPECT_LT(std::hypot(offset[0].get<double>() - mean_error[0].get<double>(),
+                       offset[1].get<double>() - mean_error[1].get<double>()),
+            0.5)
+      << result.out;
+  EXPECT_EQ(score["receiver"]["offset_within"].get<bool>(),
+            std::hypot(offset[0].get<double>(), offset[1].get<double>()) <=
+                std::hypot(mean_error[0].get<double>(), mean_error[1].get<double>()) + 0.3);
   // The first minute sees the ground and the first walls.
   EXPECT_GE(score["planes"]["faces"].get<int>(), 2);
   EXPECT_LE(score["planes"]["walls_found"].get<int>(), score["planes"]["walls"].get<int>());
@@ -69,6 +82,8 @@ TEST_F(ScoreCommand, ScoresAReplaysMapAfterLayingItsPathOntoTheTruth) {
       run_cli({"score", map_.string(), (logs_ / "truth.json").string()});
   ASSERT_EQ(lines.status, kExitOk) << lines.err;
   EXPECT_NE(lines.out.find("path (path.csv): "), std::string::npos);
+  EXPECT_NE(lines.out.find("where the map sits: its path "), std::string::npos);
+  EXPECT_NE(lines.out.find("the receiver's mean error "), std::string::npos);
   EXPECT_NE(lines.out.find("matched path (the scan matcher's"), std::string::npos);
   EXPECT_NE(lines.out.find("planes: walls found "), std::string::npos);
   EXPECT_NE(lines.out.find("buildings: mean footprint IoU "), std::string::npos);
@@ -90,6 +105,16 @@ TEST_F(ScoreCommand, AMapWithoutASolvedPathIsScoredOnItsTrajectory) {
   EXPECT_LT(score["path"]["rms_m"].get<double>(), 2.0);
   EXPECT_EQ(score["matched_path"]["poses"].get<int>(), 0);
   fs::remove_all(map);
+  // A truth.json alone (no truth_gps.csv beside it) has no receiver to compare with.
+  const fs::path truth_alone = scratch("score_truth_alone");
+  fs::create_directories(truth_alone);
+  fs::copy_file(logs_ / "truth.json", truth_alone / "truth.json",
+                fs::copy_options::overwrite_existing);
+  const testing::CliResult alone =
+      run_cli({"score", map_.string(), truth_alone.string(), "--json"});
+  ASSERT_EQ(alone.status, kExitOk) << alone.err;
+  EXPECT_TRUE(nlohmann::json::parse(alone.out)["receiver"].is_null());
+  fs::remove_all(truth_alone);
 }
 
 TEST_F(ScoreCommand, AMissingOrDamagedFileIsOneLineAndAFailure) {

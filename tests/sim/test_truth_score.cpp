@@ -45,6 +45,15 @@ TEST(AlignPath, AnEstimateTurnedAndShiftedIsLaidBackOntoTheTruth) {
   EXPECT_EQ(alignment.pairs, estimate.size());
   EXPECT_NEAR(alignment.yaw_rad, -3.0 * std::numbers::pi / 180.0, 1e-9);
   EXPECT_NEAR(alignment.shift_m.z(), -0.5, 1e-9);
+  // Where it sits: its centroid, turned 3 deg about the origin and shifted, less the truth's.
+  Eigen::Vector3d true_centroid_m = Eigen::Vector3d::Zero();
+  for (const TimedPosition& pose : estimate) {
+    true_centroid_m += turn.inverse() * (pose.position_m - Eigen::Vector3d(2, -1, 0.5)) /
+                       static_cast<double>(estimate.size());
+  }
+  const Eigen::Vector3d offset_m =
+      turn * true_centroid_m + Eigen::Vector3d(2, -1, 0.5) - true_centroid_m;
+  EXPECT_LT((alignment.offset_m - offset_m.head<2>()).norm(), 1e-9);
   EXPECT_LT(alignment.rms_m, 1e-9);
   EXPECT_LT(alignment.max_m, 1e-9);
   for (const TimedPosition& pose : estimate) {

@@ -73,6 +73,10 @@ struct PathAlignment {
   double yaw_rad = 0.0;
   Eigen::Vector3d shift_m = Eigen::Vector3d::Zero();
   std::size_t pairs = 0;  // estimated positions with a true one at their time
+  // Where the estimated path sits, on average: its centroid less the true path's (east,
+  // north). The shift above depends on where the frame's origin is, through the turn; this
+  // does not, and is what a receiver's mean error moves.
+  Eigen::Vector2d offset_m = Eigen::Vector2d::Zero();
   // The estimated path after the motion, against the true one (horizontal distances).
   double rms_m = 0.0;
   double median_m = 0.0;
