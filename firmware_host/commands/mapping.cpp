@@ -188,13 +188,14 @@ void MappingSession::report(std::ostream& err, double data_s) const {
         text, sizeof text,
         "rigid path: %zu keyframes (%llu thinnings), %llu fixes, %zu ties between passes "
         "(full: %llu new ones dropped, %llu kept ones replaced), %llu solves; %llu final planes "
-        "moved by it, %llu times a plane was "
-        "shown again where a solve moved it, %llu fixes dropped waiting\n",
+        "moved by it, %llu of them joined to a bigger one it laid them on, %llu times a plane "
+        "was shown again where a solve moved it, %llu fixes dropped waiting\n",
         mapper_.rigid_path().keyframe_count(), static_cast<unsigned long long>(p.thinnings),
         static_cast<unsigned long long>(p.fixes), mapper_.rigid_path().tie_count(),
         static_cast<unsigned long long>(p.ties_dropped),
         static_cast<unsigned long long>(p.ties_replaced), static_cast<unsigned long long>(p.solves),
         static_cast<unsigned long long>(rigid.planes_moved),
+        static_cast<unsigned long long>(mapper_.registry().counters().finals_joined),
         static_cast<unsigned long long>(mapper_.registry().counters().view_moved),
         static_cast<unsigned long long>(rigid.fixes_dropped));
     err << text;

@@ -21,6 +21,7 @@ void read_rigid_path_table(TableReader& t, pipeline::MapperConfig& c) {
   // the end), reported again when that moves one more than view_change_m.
   c.rigid_view = t.boolean_or("view", c.rigid_view);
   c.rigid_view_change_m = t.positive_or("view_change_m", c.rigid_view_change_m);
+  c.rigid_join_finals = t.boolean_or("join_final_planes", c.rigid_join_finals);
   localize::PathSmootherConfig& r = c.path;
   r.max_keyframes = t.capacity_or("max_keyframes", r.max_keyframes);
   r.keyframe_spacing_m = t.positive_or("keyframe_spacing_m", r.keyframe_spacing_m);

@@ -8,21 +8,10 @@
 #include "blockmap/core/angles.hpp"
 #include "blockmap/core/check.hpp"
 #include "blockmap/planes/polygon.hpp"
+#include "plane_extent.hpp"
 
 namespace blockmap::map {
 namespace {
-
-Eigen::AlignedBox3d box_of(std::span<const Eigen::Vector3d> polygon) noexcept {
-  Eigen::AlignedBox3d box;
-  for (const Eigen::Vector3d& p : polygon) {
-    box.extend(p);
-  }
-  return box;
-}
-
-std::span<const Eigen::Vector3d> polygon_of(const msg::PlanePatch& plane) noexcept {
-  return {plane.polygon_m.data(), plane.polygon_size};
-}
 
 // Whether `meet_at` holds at the two polygons' vertices nearest each other. A facade that a
 // level laser saw through drifting poses comes in long traces a degree or two apart: their
@@ -259,7 +248,7 @@ void PlaneRegistry::on_evicted(const VoxelWindow::EvictedTile& tile) noexcept {
 
 bool PlaneRegistry::matches(const msg::PlanePatch& known, const Eigen::AlignedBox3d& known_box,
                             const msg::PlanePatch& detected,
-                            const Eigen::AlignedBox3d& detected_box) const noexcept {
+                            const Eigen::AlignedBox3d& detected_box, double gap_m) const noexcept {
   if (std::abs(known.normal.dot(detected.normal)) < cos_match_angle_) {
     return false;
   }
@@ -275,7 +264,7 @@ bool PlaneRegistry::matches(const msg::PlanePatch& known, const Eigen::AlignedBo
       !(config_.walls_from_lines && meet_at_nearest_ends(known, detected, meet_at))) {
     return false;
   }
-  return known_box.exteriorDistance(detected_box) <= config_.match_gap_m;
+  return known_box.exteriorDistance(detected_box) <= (gap_m < 0.0 ? config_.match_gap_m : gap_m);
 }
 
 PlaneRegistry::LivePlane* PlaneRegistry::match_and_merge(const msg::PlanePatch& detected) noexcept {

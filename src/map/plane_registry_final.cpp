@@ -1,8 +1,11 @@
 // PlaneRegistry's final list: the planes that left the window, kept (the biggest when full),
 // saved for snapshots and restored, and moved where the rigid path's view puts them.
 #include <algorithm>
+#include <array>
+#include <utility>
 
 #include "blockmap/map/plane_registry.hpp"
+#include "plane_extent.hpp"
 
 namespace blockmap::map {
 
@@ -157,6 +160,69 @@ std::size_t PlaneRegistry::move_finals_by(const PlaneView& view) noexcept {
   }
   view_ = nullptr;
   return moved;
+}
+
+bool PlaneRegistry::join_finals_on_one_surface(std::size_t max_changes) noexcept {
+  const std::size_t limit = std::min(max_changes, changes_.size());
+  // A joined plane has grown, and may now meet one it did not: passes until one joins none.
+  for (bool joined = true; joined;) {
+    joined = false;
+    for (std::size_t i = 0; i < final_count_; ++i) {
+      Eigen::AlignedBox3d box_i = box_of(polygon_of(final_[i]));
+      for (std::size_t j = i + 1; j < final_count_;) {
+        if (!matches(final_[i], box_i, final_[j], box_of(polygon_of(final_[j])),
+                     config_.match_distance_m)) {
+          ++j;
+          continue;
+        }
+        if (change_count_ + 2 > limit) {
+          return false;
+        }
+        // The bigger one keeps its id; remove_final() moves the last plane into j's slot.
+        if (final_[j].support > final_[i].support) {
+          std::swap(final_[i], final_[j]);
+          std::swap(final_moments_[i], final_moments_[j]);
+          std::swap(final_seen_[i], final_seen_[j]);
+          std::swap(final_shown_[i], final_shown_[j]);
+        }
+        join_final(i, j);
+        ++counters_.finals_joined;
+        joined = true;
+        box_i = box_of(polygon_of(final_[i]));
+      }
+    }
+  }
+  return true;
+}
+
+void PlaneRegistry::join_final(std::size_t into, std::size_t from) noexcept {
+  msg::PlanePatch& plane = final_[into];
+  emit(msg::PlaneChangeKind::kRemoved, final_[from], final_shown_[from]);
+  planes::PointMoments& points = final_moments_[into];
+  points.merge(final_moments_[from]);
+  final_seen_[into].merge(final_seen_[from]);
+  const planes::PlaneFit fit = config_.walls_from_lines
+                                   ? planes::fit_plane_or_wall(points, config_.line_width_m)
+                                   : planes::fit_plane(points);
+  if (fit.valid) {
+    const double sign = fit.normal_unit.dot(plane.normal) < 0.0 ? -1.0 : 1.0;
+    std::array<Eigen::Vector3d, msg::kMaxPolygonVertices> joined{};
+    plane.polygon_size = hull_on_plane(sign * fit.normal_unit, fit.centroid_m, polygon_of(plane),
+                                       polygon_of(final_[from]), joined);
+    plane.polygon_m = joined;
+    plane.normal = sign * fit.normal_unit;
+    plane.d_m = sign * fit.d_m;
+    plane.centroid_m = fit.centroid_m;
+    plane.rmse_m = fit.rmse_m;
+  }
+  plane.support = points.weight;
+  // A wall's lower part seen on another pass is labelled other (too low for a wall): the
+  // joined extent is the wall's.
+  if (plane.kind == msg::PlaneKind::kOther) {
+    plane.kind = final_[from].kind;
+  }
+  remove_final(from);
+  emit(msg::PlaneChangeKind::kFinalized, plane, final_shown_[into]);
 }
 
 bool PlaneRegistry::refresh_view(std::size_t max_changes) noexcept {

@@ -410,10 +410,8 @@ bool Mapper::show_planes_where_the_path_puts_them() noexcept {
   if (!view_due_) {
     return false;
   }
-  // As updates of their own at the last extraction's time, each within one datagram (128
-  // entries of at most 427 bytes).
-  constexpr std::size_t kViewChangesPerUpdate = 128;
-  view_due_ = !registry_.refresh_view(kViewChangesPerUpdate);
+  // As updates of their own at the last extraction's time, each within one datagram.
+  view_due_ = !registry_.refresh_view(kChangesPerDatagram);
   if (registry_.changes().empty()) {
     return false;
   }
@@ -467,7 +465,7 @@ bool Mapper::finish_map() noexcept {
     }
   }
   if (finalized_) {
-    return false;
+    return join_final_planes();
   }
   finalized_ = true;
   if (path_on_) {
@@ -478,6 +476,18 @@ bool Mapper::finish_map() noexcept {
     path_.move_finals(registry_);
   }
   update_stamp_ns_ = last_scan_ns_;
+  refit_buildings();
+  return true;
+}
+
+bool Mapper::join_final_planes() noexcept {
+  if (!path_on_ || !config_.rigid_join_finals || finals_joined_) {
+    return false;
+  }
+  finals_joined_ = registry_.join_finals_on_one_surface(kChangesPerDatagram);
+  if (registry_.changes().empty()) {
+    return false;
+  }
   refit_buildings();
   return true;
 }

@@ -513,6 +513,98 @@ TEST(PlaneRegistry, AMovedFinalPlaneTakesItsPointsAlongAndIsFinalAgain) {
   EXPECT_NEAR(fit.centroid_m.y(), 2.5, 1e-9);
 }
 
+// A loop closure's move: what was first seen after the first minute lies 2 m south of where
+// it was drawn.
+class LaterSouth final : public PlaneView {
+ public:
+  [[nodiscard]] PlaneMove move_of(const msg::PlanePatch& /*plane*/,
+                                  const SeenSpans& seen) const noexcept override {
+    const bool later = seen.count > 0 && seen.from_ns[0] > 60 * kNanosecondsPerSecond;
+    return PlaneMove{0.0, Eigen::Vector3d(0.0, later ? -2.0 : 0.0, 0.0)};
+  }
+};
+
+// A loop's start, drawn again at its end before the path closed it: two final planes, 2 m
+// apart as drawn. The final move lays the later one on the earlier, and the two become one
+// with both looks' points, under the bigger one's id; a wall elsewhere stays apart.
+TEST(PlaneRegistry, FinalPlanesTheMoveLaysOnOneSurfaceBecomeOne) {
+  Registry r;
+  const auto start = r.detect({wall(0, 20, 10)});
+  r.now_ns += 100 * kNanosecondsPerSecond;  // driving round the block
+  static_cast<void>(r.detect({wall(0, 20, 10), wall(5, 15, 12), wall(0, 5, 30)}));
+  r.registry.begin_update();
+  r.registry.finalize_all();
+  ASSERT_EQ(r.registry.final_planes().size(), 3u);
+  r.registry.begin_update();
+  EXPECT_EQ(r.registry.move_finals_by(LaterSouth{}), 2u);
+  r.registry.begin_update();
+  EXPECT_TRUE(r.registry.join_finals_on_one_surface(2));
+  const auto changes = r.registry.changes();
+  ASSERT_EQ(changes.size(), 2u);
+  EXPECT_EQ(changes[0].change, msg::PlaneChangeKind::kRemoved);
+  EXPECT_EQ(changes[1].change, msg::PlaneChangeKind::kFinalized);
+  EXPECT_EQ(changes[1].plane.id, start[0].plane.id);
+  EXPECT_EQ(r.registry.counters().finals_joined, 1u);
+  ASSERT_EQ(r.registry.final_planes().size(), 2u);
+  const auto joined =
+      std::find_if(r.registry.final_planes().begin(), r.registry.final_planes().end(),
+                   [&](const msg::PlanePatch& p) { return p.id == start[0].plane.id; });
+  ASSERT_NE(joined, r.registry.final_planes().end());
+  EXPECT_NEAR(joined->d_m, 10.0, 1e-9);
+  EXPECT_NEAR(joined->support, wall(0, 20, 10).moments.weight + wall(5, 15, 12).moments.weight,
+              1e-6);
+  std::array<SavedPlane, 4> saved{};
+  ASSERT_EQ(r.registry.save(saved), 2u);
+  for (const SavedPlane& plane : std::span(saved).first(2)) {
+    EXPECT_NEAR(plane.moments.weight, plane.plane.support, 1e-9);
+  }
+  // Nothing is left to join, and a second call says so without a change.
+  r.registry.begin_update();
+  EXPECT_TRUE(r.registry.join_finals_on_one_surface(2));
+  EXPECT_TRUE(r.registry.changes().empty());
+}
+
+// A wall's lower part seen on the way back is too low to be called a wall (other); joined
+// with the wall, the plane is a wall, though the lower part holds more points.
+TEST(PlaneRegistry, AJoinedPlaneIsAWallWhenOneOfItsPartsIs) {
+  Registry r;
+  static_cast<void>(r.detect({wall(5, 15, 10)}));
+  r.now_ns += 100 * kNanosecondsPerSecond;
+  Detected low = wall(0, 30, 12, 1.5);
+  low.plane.kind = msg::PlaneKind::kOther;
+  ASSERT_GT(low.moments.weight, wall(5, 15, 10).moments.weight);
+  static_cast<void>(r.detect({wall(5, 15, 10), low}));
+  r.registry.begin_update();
+  r.registry.finalize_all();
+  r.registry.begin_update();
+  static_cast<void>(r.registry.move_finals_by(LaterSouth{}));
+  r.registry.begin_update();
+  EXPECT_TRUE(r.registry.join_finals_on_one_surface(64));
+  ASSERT_EQ(r.registry.final_planes().size(), 1u);
+  EXPECT_EQ(r.registry.final_planes()[0].kind, msg::PlaneKind::kWall);
+}
+
+// Joins that do not fit an update's changes wait for the next update.
+TEST(PlaneRegistry, JoiningFinalPlanesGoesOnInTheNextUpdateWhenOneIsFull) {
+  Registry r;
+  static_cast<void>(r.detect({wall(0, 20, 10), wall(0, 20, 40)}));
+  r.now_ns += 100 * kNanosecondsPerSecond;
+  static_cast<void>(r.detect({wall(0, 20, 10), wall(0, 20, 40), wall(0, 20, 12), wall(0, 20, 42)}));
+  r.registry.begin_update();
+  r.registry.finalize_all();
+  ASSERT_EQ(r.registry.final_planes().size(), 4u);
+  r.registry.begin_update();
+  static_cast<void>(r.registry.move_finals_by(LaterSouth{}));
+  r.registry.begin_update();
+  EXPECT_FALSE(r.registry.join_finals_on_one_surface(3));  // one join: two changes
+  EXPECT_EQ(r.registry.changes().size(), 2u);
+  r.registry.begin_update();
+  EXPECT_TRUE(r.registry.join_finals_on_one_surface(3));
+  EXPECT_EQ(r.registry.changes().size(), 2u);
+  EXPECT_EQ(r.registry.final_planes().size(), 2u);
+  EXPECT_EQ(r.registry.counters().finals_joined, 2u);
+}
+
 TEST(PlaneRegistry, WhenFullTheSmallestLivePlaneMakesRoomOrTheNewOneIsRefused) {
   PlaneRegistryConfig config;
   config.max_live_planes = 2;

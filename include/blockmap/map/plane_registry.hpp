@@ -93,6 +93,7 @@ struct PlaneRegistryCounters {
   std::uint64_t samples_frozen = 0;   // evicted samples kept by a live plane
   std::uint64_t reopened = 0;         // final planes seen again (the robot came back)
   std::uint64_t view_moved = 0;       // planes reported again where a refreshed view puts them
+  std::uint64_t finals_joined = 0;    // final planes a move laid on a bigger one's surface
   // The most live planes after an update, and the most changes one update held: what
   // max_live_planes and the change list (change_capacity()) are sized against.
   std::size_t peak_live = 0;
@@ -210,6 +211,13 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   // already; the view, if one was set, is then off, since the planes are where it put them.
   // Returns how many moved.
   std::size_t move_finals_by(const PlaneView& view) noexcept;
+  // After move_finals_by(): final planes the move laid on one surface (a loop's start,
+  // drawn again at its end before the path closed it) become one, as a surface seen again
+  // while live does (the same match, but extents that meet within match_distance_m: two
+  // buildings' facades in one line, a gap apart, stay two): the bigger takes the other's
+  // points and is reported finalized again, the other removed. At most `max_changes` changes (two a
+  // join) an update: false while more are left, which the next call goes on with.
+  bool join_finals_on_one_surface(std::size_t max_changes) noexcept;
 
   // From now on every plane reported is shown moved by `view` (nullptr: as drawn), and
   // buildings see the planes so (for_each_plane()). The registry does not own it.
@@ -292,9 +300,11 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
     [[nodiscard]] Eigen::AlignedBox3d box_m() const noexcept { return {box_min_m, box_max_m}; }
   };
 
+  // On one surface, with extents at most `gap_m` apart (match_gap_m when negative).
   [[nodiscard]] bool matches(const msg::PlanePatch& known, const Eigen::AlignedBox3d& known_box,
                              const msg::PlanePatch& detected,
-                             const Eigen::AlignedBox3d& detected_box) const noexcept;
+                             const Eigen::AlignedBox3d& detected_box,
+                             double gap_m = -1.0) const noexcept;
   // Final planes that `detected` continues: reopened as a live plane when `into` is null
   // (returned), else merged into `into`.
   LivePlane* take_final_matches(const msg::PlanePatch& detected,
@@ -336,6 +346,8 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   [[nodiscard]] bool shown_off(const msg::PlanePatch& plane, const PlaneMove& shown,
                                const PlaneMove& now) const noexcept;
   void move_final(std::size_t index, const PlaneMove& move) noexcept;
+  // Final plane `into` takes final plane `from`'s points and extent, refitted; `from` goes.
+  void join_final(std::size_t into, std::size_t from) noexcept;
   template <typename Visit>
   static void visit_shown(const msg::PlanePatch& plane, const PlaneMove& shown, Visit& visit) {
     if (shown.is_identity()) {

@@ -196,6 +196,12 @@ class Mapper {
   bool show_planes_where_the_path_puts_them() noexcept;
   bool draw_scans_until_extraction() noexcept;
   bool finish_map() noexcept;
+  // After the end's move: final planes it laid on one surface become one, in updates of
+  // their own (kChangesPerDatagram changes each).
+  bool join_final_planes() noexcept;
+  // The changes of an update the mapper makes beyond a detection's (the view's, the joins'):
+  // one datagram, 128 entries of at most 427 bytes.
+  static constexpr std::size_t kChangesPerDatagram = 128;
   bool report_changes() noexcept;
 
   // The oldest queued scan whose last beam the poses cover (all of them when ending); or -1.
@@ -268,6 +274,7 @@ class Mapper {
   bool ending_ = false;
   bool final_extracted_ = false;
   bool finalized_ = false;
+  bool finals_joined_ = false;
   TimestampNs update_stamp_ns_ = 0;
   std::span<const msg::PlaneChange> changes_;
   PointSink* point_sink_ = nullptr;

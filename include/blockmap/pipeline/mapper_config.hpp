@@ -104,6 +104,9 @@ struct MapperConfig {
   // rigid_view_change_m at any vertex. Off: as drawn until the end's move.
   bool rigid_view = true;
   double rigid_view_change_m = 0.05;
+  // After the end's move, final planes it laid on one surface become one
+  // (PlaneRegistry::join_finals_on_one_surface). Off: each stays as it was finalized.
+  bool rigid_join_finals = true;
   std::size_t max_external_poses = 1024;  // kExternal: the newest poses kept to interpolate
 
   std::array<map::SensorMount, kMaxLasers> laser_mounts{};
