@@ -25,12 +25,6 @@ using path_state::kYaw;
 using path_state::Matrix5;
 using path_state::Vector5;
 
-// Floors on the motion's variances: a robot standing still for a minute of fixes is held
-// still, but not so rigidly that the normal equations lose their digits.
-constexpr double kMinMotionVarianceM2 = 1e-6;
-constexpr double kMinTurnVarianceRad2 = 1e-8;
-// The receiver's error between two fixes of one epoch is the same error (1 - a^2 floored).
-constexpr double kMinBiasDecay = 1e-6;
 // Added to every diagonal: the path without a single fix has no place of its own.
 constexpr double kDamping = 1e-9;
 

@@ -264,7 +264,12 @@ bool PlaneRegistry::matches(const msg::PlanePatch& known, const Eigen::AlignedBo
       !(config_.walls_from_lines && meet_at_nearest_ends(known, detected, meet_at))) {
     return false;
   }
-  return known_box.exteriorDistance(detected_box) <= (gap_m < 0.0 ? config_.match_gap_m : gap_m);
+  return known_box.exteriorDistance(detected_box) <= gap_m;
+}
+
+planes::PlaneFit PlaneRegistry::fit_of(const planes::PointMoments& points) const noexcept {
+  return config_.walls_from_lines ? planes::fit_plane_or_wall(points, config_.line_width_m)
+                                  : planes::fit_plane(points);
 }
 
 PlaneRegistry::LivePlane* PlaneRegistry::match_and_merge(const msg::PlanePatch& detected) noexcept {
@@ -272,7 +277,7 @@ PlaneRegistry::LivePlane* PlaneRegistry::match_and_merge(const msg::PlanePatch& 
   // Planes added by this update are not matched again: the detector merged the window.
   const auto candidate = [&](const LivePlane& plane) {
     return plane.in_use && plane.reported.id != 0 &&
-           matches(plane.reported, plane.box_m(), detected, detected_box);
+           matches(plane.reported, plane.box_m(), detected, detected_box, config_.match_gap_m);
   };
   LivePlane* biggest = nullptr;
   for (LivePlane& plane : live_) {
@@ -299,7 +304,8 @@ PlaneRegistry::LivePlane* PlaneRegistry::take_final_matches(const msg::PlanePatc
                                                             LivePlane* into) noexcept {
   for (std::size_t i = 0; i < final_count_;) {
     const msg::PlanePatch final_plane = final_[i];
-    if (!matches(final_plane, box_of(polygon_of(final_plane)), detected, detected_box)) {
+    if (!matches(final_plane, box_of(polygon_of(final_plane)), detected, detected_box,
+                 config_.match_gap_m)) {
       ++i;
       continue;
     }
@@ -524,9 +530,7 @@ planes::PointMoments PlaneRegistry::points_of(const LivePlane& plane) noexcept {
 
 void PlaneRegistry::combine(const LivePlane& plane, msg::PlanePatch& out) noexcept {
   const planes::PointMoments points = points_of(plane);
-  const planes::PlaneFit fit = config_.walls_from_lines
-                                   ? planes::fit_plane_or_wall(points, config_.line_width_m)
-                                   : planes::fit_plane(points);
+  const planes::PlaneFit fit = fit_of(points);
   if (!fit.valid) {
     return;
   }

@@ -201,9 +201,7 @@ void PlaneRegistry::join_final(std::size_t into, std::size_t from) noexcept {
   planes::PointMoments& points = final_moments_[into];
   points.merge(final_moments_[from]);
   final_seen_[into].merge(final_seen_[from]);
-  const planes::PlaneFit fit = config_.walls_from_lines
-                                   ? planes::fit_plane_or_wall(points, config_.line_width_m)
-                                   : planes::fit_plane(points);
+  const planes::PlaneFit fit = fit_of(points);
   if (fit.valid) {
     const double sign = fit.normal_unit.dot(plane.normal) < 0.0 ? -1.0 : 1.0;
     std::array<Eigen::Vector3d, msg::kMaxPolygonVertices> joined{};

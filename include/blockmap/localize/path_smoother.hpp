@@ -138,6 +138,13 @@ struct PathSmootherCounters {
 
 class PathSmoother {
  public:
+  // Floors on the motion's variances: a robot standing still for a minute of fixes is held
+  // still, but not so rigidly that the normal equations lose their digits.
+  static constexpr double kMinMotionVarianceM2 = 1e-6;
+  static constexpr double kMinTurnVarianceRad2 = 1e-8;
+  // The receiver's error between two fixes of one epoch is the same error (1 - a^2 floored).
+  static constexpr double kMinBiasDecay = 1e-6;
+
   void init(Arena& arena, const PathSmootherConfig& config);
   [[nodiscard]] static std::size_t arena_bytes(const PathSmootherConfig& config) noexcept;
   [[nodiscard]] std::size_t memory_bytes() const noexcept;

@@ -300,11 +300,12 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
     [[nodiscard]] Eigen::AlignedBox3d box_m() const noexcept { return {box_min_m, box_max_m}; }
   };
 
-  // On one surface, with extents at most `gap_m` apart (match_gap_m when negative).
+  // On one surface, with extents at most `gap_m` apart.
   [[nodiscard]] bool matches(const msg::PlanePatch& known, const Eigen::AlignedBox3d& known_box,
                              const msg::PlanePatch& detected,
-                             const Eigen::AlignedBox3d& detected_box,
-                             double gap_m = -1.0) const noexcept;
+                             const Eigen::AlignedBox3d& detected_box, double gap_m) const noexcept;
+  // The plane of `points`: the vertical one through a line when walls may be lines.
+  [[nodiscard]] planes::PlaneFit fit_of(const planes::PointMoments& points) const noexcept;
   // Final planes that `detected` continues: reopened as a live plane when `into` is null
   // (returned), else merged into `into`.
   LivePlane* take_final_matches(const msg::PlanePatch& detected,

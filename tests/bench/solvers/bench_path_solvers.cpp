@@ -30,10 +30,10 @@ using blockmap::localize::PathSmootherConfig;
 using blockmap::localize::Pose2;
 namespace synthetic = blockmap::localize::synthetic;
 
-// PathSmoother's floors on a term's variance (src/localize/path_smoother.cpp).
-constexpr double kMinMotionVarianceM2 = 1e-6;
-constexpr double kMinTurnVarianceRad2 = 1e-8;
-constexpr double kMinBiasDecay = 1e-6;
+// PathSmoother's floors on a term's variance, the same here.
+constexpr double kMinMotionVarianceM2 = PathSmoother::kMinMotionVarianceM2;
+constexpr double kMinTurnVarianceRad2 = PathSmoother::kMinTurnVarianceRad2;
+constexpr double kMinBiasDecay = PathSmoother::kMinBiasDecay;
 
 // A drive of state.range(0) keyframes: 4 Hz fixes, so a keyframe every 0.25 s.
 struct Drive {
