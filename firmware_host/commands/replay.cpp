@@ -6,18 +6,23 @@
 // without it the smoothed trajectory to stdout. Laser logs are read when robot.toml names the
 // lasers.
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <memory>
 #include <optional>
 #include <ostream>
+#include <span>
 #include <sstream>
 #include <string>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "blockmap/core/angles.hpp"
 #include "blockmap/core/spsc_queue.hpp"
@@ -44,10 +49,11 @@ namespace fs = std::filesystem;
 
 struct ReplayOptions {
   std::string dir;
-  MappingOptions mapping;  // out, config, udp, budget
-  std::string origin;      // "LAT,LON,H"; empty: the first good fix
-  std::string start_pose;  // "X,Y,YAW_DEG" in the local frame: a robot without a receiver
-  std::string prior_map;   // GeoJSON or buildings.json: localize against it too
+  MappingOptions mapping;        // out, config, udp, budget
+  std::string origin;            // "LAT,LON,H"; empty: the first good fix
+  std::string start_pose;        // "X,Y,YAW_DEG" in the local frame: a robot without a receiver
+  std::string prior_map;         // GeoJSON or buildings.json: localize against it too
+  std::string poses = "filter";  // or "truth": a simulated run's true poses (truth.json)
   std::uint64_t seed = 1;
   std::size_t particles = pipeline::MapperConfig{}.localizer.filter.particle_count;
 };
@@ -60,6 +66,37 @@ std::optional<localize::Pose2> parse_start_pose(const std::string& text) {
     return std::nullopt;
   }
   return localize::Pose2{0, (*values)[0], (*values)[1], radians_from_degrees((*values)[2])};
+}
+
+// truth.json's trajectory: a simulated run's true poses, oldest first (the ceiling of what
+// the logs map to: the same scans drawn without the localizer's error).
+std::vector<localize::Pose3> read_true_poses(const fs::path& path, std::string& problem) {
+  std::vector<localize::Pose3> poses;
+  std::ifstream file(path);
+  if (!file) {
+    problem = path.string() + " cannot be read (--poses truth takes a simulated run's logs)";
+    return poses;
+  }
+  try {
+    const nlohmann::json truth = nlohmann::json::parse(file);
+    for (const nlohmann::json& pose : truth.at("trajectory")) {
+      poses.push_back({ns_from_seconds(pose.at("t_s").get<double>()), pose.at("x_m").get<double>(),
+                       pose.at("y_m").get<double>(), pose.at("z_m").get<double>(),
+                       pose.at("roll_rad").get<double>(), pose.at("pitch_rad").get<double>(),
+                       pose.at("yaw_rad").get<double>()});
+    }
+  } catch (const nlohmann::json::exception& error) {
+    problem = path.string() + ": not a truth.json (" + error.what() + ")";
+    return {};
+  }
+  const auto older = [](const localize::Pose3& a, const localize::Pose3& b) {
+    return a.stamp_ns < b.stamp_ns;
+  };
+  if (poses.empty() || !std::is_sorted(poses.begin(), poses.end(), older)) {
+    problem = path.string() + ": its trajectory is empty or not in time order";
+    return {};
+  }
+  return poses;
 }
 
 // Localization only: no lasers, and the map's capacities at their smallest.
@@ -78,8 +115,13 @@ void shrink_to_localization(pipeline::MapperConfig& config) {
 // The logs' next messages, handed to the mapper oldest first.
 class TimeMerge {
  public:
-  TimeMerge(RecordedRun& run, hal::FixConverter& fixes)
-      : run_(run), fixes_(fixes), scans_(run.laser_count()), have_scan_(run.laser_count()) {
+  // `true_poses`, when not empty, go to the mapper too (PoseSource::kExternal).
+  TimeMerge(RecordedRun& run, hal::FixConverter& fixes, std::span<const localize::Pose3> true_poses)
+      : run_(run),
+        fixes_(fixes),
+        true_poses_(true_poses),
+        scans_(run.laser_count()),
+        have_scan_(run.laser_count()) {
     have_base_ = run_.next_base(odometry_, imu_);
     now_ns_ = have_base_ ? odometry_.header.stamp_ns : 0;
     next_usable_fix();
@@ -97,6 +139,8 @@ class TimeMerge {
     constexpr TimestampNs kNever = std::numeric_limits<TimestampNs>::max();
     const TimestampNs base_ns = have_base_ ? odometry_.header.stamp_ns : kNever;
     const TimestampNs fix_ns = have_fix_ ? observation_.stamp_ns : kNever;
+    const TimestampNs pose_ns =
+        next_pose_ < true_poses_.size() ? true_poses_[next_pose_].stamp_ns : kNever;
     std::size_t laser = scans_.size();
     TimestampNs scan_ns = kNever;
     for (std::size_t i = 0; i < scans_.size(); ++i) {
@@ -105,9 +149,13 @@ class TimeMerge {
         laser = i;
       }
     }
-    const TimestampNs oldest_ns = std::min({base_ns, fix_ns, scan_ns});
+    const TimestampNs oldest_ns = std::min({base_ns, fix_ns, scan_ns, pose_ns});
     if (oldest_ns == kNever) {
       return false;
+    }
+    if (pose_ns == oldest_ns) {
+      mapper.on_pose(true_poses_[next_pose_++]);
+      return true;
     }
     first_ns_ = std::min(first_ns_, oldest_ns);
     last_ns_ = std::max(last_ns_, oldest_ns);
@@ -139,6 +187,8 @@ class TimeMerge {
 
   RecordedRun& run_;
   hal::FixConverter& fixes_;
+  std::span<const localize::Pose3> true_poses_;
+  std::size_t next_pose_ = 0;
   msg::OdometrySample odometry_;
   msg::ImuSample imu_;
   bool have_base_ = false;
@@ -221,6 +271,24 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
     config.prior_map.enabled = true;
     config.prior_map.seed = options.seed;
   }
+  std::vector<localize::Pose3> true_poses;
+  if (options.poses == "truth") {
+    if (!map_planes || !options.prior_map.empty() || !options.start_pose.empty()) {
+      err << "blockmap: replay: --poses truth maps (--out) with the true poses alone: no "
+             "--prior-map or --start-pose\n";
+      return kExitUsage;
+    }
+    std::string problem;
+    true_poses = read_true_poses(dir / "truth.json", problem);
+    if (!problem.empty()) {
+      err << "blockmap: replay: " << problem << '\n';
+      return kExitFailure;
+    }
+    config.pose_source = pipeline::PoseSource::kExternal;
+  } else if (options.poses != "filter") {
+    err << "blockmap: replay: --poses is filter or truth\n";
+    return kExitUsage;
+  }
   if (const std::string problem = pipeline::validate(config); !problem.empty()) {
     err << "blockmap: replay: " << problem << '\n';
     return kExitUsage;
@@ -248,7 +316,7 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
     }
   }
 
-  TimeMerge merge(*run, *fixes);
+  TimeMerge merge(*run, *fixes, true_poses);
   while (merge.feed_next(session->mapper())) {
     session->pump();
   }
@@ -338,6 +406,11 @@ Command add_replay_command(CLI::App& app) {
   command->add_option("--start-pose", options->start_pose,
                       "X,Y,YAW_DEG: a robot without a receiver starts here in the local frame of "
                       "--origin (gps.nmea may then be missing)");
+  command
+      ->add_option("--poses", options->poses,
+                   "filter: the particle filter's poses (as on the robot); truth: a simulated "
+                   "run's true poses, from truth.json in DIR")
+      ->capture_default_str();
   command->add_option("--seed", options->seed, "the particle filter's seed")->capture_default_str();
   command->add_option("--particles", options->particles, "the particle filter's particle count")
       ->check(CLI::Range(std::size_t{2}, std::size_t{1} << 24))

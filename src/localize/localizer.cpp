@@ -166,14 +166,15 @@ bool Localizer::carrier_phase_holds(TimestampNs stamp_ns) const noexcept {
 }
 
 void Localizer::follow_height(const GpsObservation& fix, double height_m) noexcept {
-  // The robot frame's height, low-passed: over minutes from a code fix, over about a second
-  // from a carrier-phase one.
+  // The robot frame's height: the first fix's, then followed within about a second of a
+  // carrier-phase fix; a code fix's is left out (level) or low-passed over minutes.
+  const bool centimetres = carrier_phase(fix.correction);
   if (!have_height_) {
     height_m_ = height_m;
     have_height_ = true;
-  } else {
+  } else if (centimetres || !config_.level_with_code_fixes) {
     const double smoothing_s =
-        carrier_phase(fix.correction) ? config_.rtk_height_smoothing_s : config_.height_smoothing_s;
+        centimetres ? config_.rtk_height_smoothing_s : config_.height_smoothing_s;
     const double dt_s = std::max(0.0, seconds_from_ns(fix.stamp_ns - last_height_ns_));
     height_m_ += (height_m - height_m_) * dt_s / (smoothing_s + dt_s);
   }

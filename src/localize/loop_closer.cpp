@@ -166,6 +166,15 @@ bool LoopCloser::add_scan(const Pose2& pose,
   return true;
 }
 
+bool LoopCloser::finish_last_submap() noexcept {
+  if (!open_ || travel_m_ - open_from_m_ < 0.5 * config_.submap_length_m) {
+    return false;
+  }
+  finish_submap();
+  open_ = false;
+  return true;
+}
+
 void LoopCloser::add_cells(const Pose2& pose,
                            std::span<const Eigen::Vector2d> robot_points_m) noexcept {
   last_added_ = pose;

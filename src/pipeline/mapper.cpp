@@ -164,7 +164,8 @@ void Mapper::feed_poses(const TimedMessage& message) noexcept {
 // --- Poses ---------------------------------------------------------------------------------
 
 std::size_t Mapper::drain_final_poses(std::span<localize::Pose3> out) noexcept {
-  return config_.pose_source == PoseSource::kLocalizer ? poses_.localizer().drain_final(out) : 0;
+  return config_.pose_source == PoseSource::kLocalizer ? poses_.localizer().drain_final(out)
+                                                       : poses_.drain_given(out);
 }
 
 std::size_t Mapper::smoothed_poses(std::span<localize::Pose3> out) const noexcept {

@@ -160,10 +160,7 @@ void RigidPathSolver::add_matched_scan(TimestampNs stamp_ns, const localize::Pos
   // A finished submap is matched against the earlier ones near it: the verified revisits
   // hold the passes to each other.
   if (scan_matched && closer_.add_scan(in_path, match_points_m)) {
-    const std::size_t closures = closer_.find_closures(path_, found_);
-    for (std::size_t k = 0; k < closures; ++k) {
-      path_.close_loop(found_[k]);
-    }
+    close_loops();
   }
   if (stamp_ns >= next_solve_ns_) {
     path_.solve();
@@ -179,7 +176,17 @@ bool RigidPathSolver::take_solved() noexcept {
   return solved;
 }
 
+void RigidPathSolver::close_loops() noexcept {
+  const std::size_t closures = closer_.find_closures(path_, found_);
+  for (std::size_t k = 0; k < closures; ++k) {
+    path_.close_loop(found_[k]);
+  }
+}
+
 void RigidPathSolver::solve_final() noexcept {
+  if (closer_.finish_last_submap()) {
+    close_loops();
+  }
   if (placed()) {
     path_.solve();
   }

@@ -1,5 +1,7 @@
 #include "blockmap/pipeline/scan_poses.hpp"
 
+#include <algorithm>
+
 #include "blockmap/core/angles.hpp"
 
 namespace blockmap::pipeline {
@@ -58,7 +60,17 @@ void ScanPoses::on_pose(const localize::Pose3& pose) noexcept {
   any_in_ = true;
   if (source_ == PoseSource::kExternal) {
     given_.push_overwrite(pose);
+    undrained_ = std::min(undrained_ + 1, given_.size());
   }
+}
+
+std::size_t ScanPoses::drain_given(std::span<localize::Pose3> out) noexcept {
+  const std::size_t n = std::min(undrained_, out.size());
+  for (std::size_t i = 0; i < n; ++i) {
+    out[i] = given_[given_.size() - undrained_ + i];
+  }
+  undrained_ -= n;
+  return n;
 }
 
 bool ScanPoses::horizon(TimestampNs& out) const noexcept {

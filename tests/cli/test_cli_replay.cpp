@@ -138,7 +138,7 @@ TEST_F(ReplayCommand, WritesTheSmoothedTrajectoryCloserToTheTruthThanGps) {
               worst_z);
   EXPECT_LT(position_rms, 0.75 * gps_rms);
   EXPECT_LT(heading_rms_deg, 3.0);
-  // Pitch is the base's own (its sensor noise is 0.2 deg); height from GPS, smoothed.
+  // Pitch is the base's own (its sensor noise is 0.2 deg); height the first fix's (level).
   EXPECT_LT(std::sqrt(pitch_sq / static_cast<double>(n)), 0.01);
   EXPECT_LT(worst_z, 6.0);
   fs::remove_all(out);
@@ -252,6 +252,40 @@ TEST_F(ReplayMapping, ARobotWithoutAReceiverStartsWhereItIsToldAndMaps) {
       run_cli({"replay", logs.string(), "--out", out.string(), "--start-pose", start});
   EXPECT_EQ(unplaced.status, kExitUsage);
   EXPECT_NE(unplaced.err.find("--start-pose takes X,Y,YAW_DEG"), std::string::npos) << unplaced.err;
+  fs::remove_all(logs);
+  fs::remove_all(out);
+}
+
+// --poses truth: the same logs drawn with the simulation's true poses (the ceiling of what
+// they map to). trajectory.csv is the truth; without truth.json it is refused with one line.
+TEST_F(ReplayMapping, TruePosesDrawTheSameLogsWhereTheRobotWas) {
+  const fs::path out = scratch("replay_true_poses");
+  const Result result =
+      run_cli({"replay", folder_.string(), "--out", out.string(), "--poses", "truth"});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  const nlohmann::json truth = nlohmann::json::parse(read_file(folder_ / "truth.json"));
+  const nlohmann::json& trajectory = truth["trajectory"];
+  std::string header;
+  const std::vector<Row> rows = trajectory_rows(read_file(out / "trajectory.csv"), header);
+  ASSERT_EQ(rows.size(), trajectory.size());
+  for (std::size_t i = 0; i < rows.size(); i += 97) {
+    EXPECT_NEAR(rows[i].t_s, trajectory[i]["t_s"].get<double>(), 1e-6) << i;
+    EXPECT_NEAR(rows[i].x_m, trajectory[i]["x_m"].get<double>(), 1e-3) << i;
+    EXPECT_NEAR(rows[i].yaw_rad, trajectory[i]["yaw_rad"].get<double>(), 1e-5) << i;
+  }
+  EXPECT_FALSE(nlohmann::json::parse(read_file(out / "planes.json"))["planes"].empty());
+  const fs::path logs = scratch("replay_true_poses_none");
+  fs::remove_all(logs);
+  fs::copy(folder_, logs);
+  fs::remove(logs / "truth.json");
+  const Result refused =
+      run_cli({"replay", logs.string(), "--out", out.string(), "--poses", "truth"});
+  EXPECT_EQ(refused.status, kExitFailure);
+  EXPECT_NE(refused.err.find("truth.json cannot be read"), std::string::npos) << refused.err;
+  const Result unknown =
+      run_cli({"replay", logs.string(), "--out", out.string(), "--poses", "gps"});
+  EXPECT_EQ(unknown.status, kExitUsage);
+  EXPECT_NE(unknown.err.find("--poses is filter or truth"), std::string::npos) << unknown.err;
   fs::remove_all(logs);
   fs::remove_all(out);
 }

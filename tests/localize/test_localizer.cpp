@@ -161,6 +161,48 @@ TEST(Localizer, AnRtkFixIsMovedFromTheAntennaToTheRobotFrame) {
   EXPECT_GT(unmounted_m, 0.09);
 }
 
+// A code receiver's height wanders by metres within a minute (its slow error) while the robot
+// drives a level street. The map's heights stay at the first fix's; low-passed over two
+// minutes instead, they would wander by the receiver's error.
+TEST(Localizer, ACodeReceiversWanderingHeightLeavesTheMapLevel) {
+  synthetic::DriveOptions options;
+  options.duration_s = 180.0;
+  const std::vector<synthetic::Sample> samples = synthetic::drive(options);
+  const auto wander_m = [](TimestampNs stamp_ns) {
+    return 2.0 * std::sin(2.0 * std::numbers::pi * seconds_from_ns(stamp_ns) / 90.0);
+  };
+  const auto height_span_m = [&](const LocalizerConfig& config) {
+    Fixture fixture(config);
+    double integrated_m = 0.0;
+    double lowest_m = std::numeric_limits<double>::max();
+    double highest_m = std::numeric_limits<double>::lowest();
+    for (const synthetic::Sample& s : samples) {
+      integrated_m += s.distance_m;
+      msg::OdometrySample odometry;
+      odometry.header.stamp_ns = s.stamp_ns;
+      odometry.fore_aft_distance_m = integrated_m;
+      msg::ImuSample imu;
+      imu.header.stamp_ns = s.stamp_ns;
+      imu.yaw_rate_radps = s.yaw_rate_radps;
+      fixture.localizer.on_base(odometry, imu);
+      if (s.has_fix) {
+        static_cast<void>(fixture.localizer.on_fix(
+            s.fix, kGroundUpM + config.antenna_m.z() + wander_m(s.stamp_ns)));
+      }
+      Pose3 pose;
+      if (fixture.localizer.map_pose_at(s.stamp_ns, pose)) {
+        lowest_m = std::min(lowest_m, pose.z_m);
+        highest_m = std::max(highest_m, pose.z_m);
+      }
+    }
+    return highest_m - lowest_m;
+  };
+  EXPECT_LT(height_span_m(small_config()), 1e-9) << "level at the first fix's height";
+  LocalizerConfig following = small_config();
+  following.level_with_code_fixes = false;
+  EXPECT_GT(height_span_m(following), 0.5) << "the receiver's wander, low-passed";
+}
+
 TEST(Localizer, AnIntegratorResetIsSkippedNotDriven) {
   synthetic::DriveOptions options;
   options.duration_s = 90.0;

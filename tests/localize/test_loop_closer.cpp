@@ -7,7 +7,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <vector>
 
@@ -17,6 +19,7 @@
 #include "blockmap/core/arena.hpp"
 #include "blockmap/localize/loop_closer.hpp"
 #include "blockmap/localize/path_smoother.hpp"
+#include "long_test.hpp"
 #include "synthetic_street.hpp"
 
 namespace blockmap::localize {
@@ -120,6 +123,52 @@ TEST(LoopCloser, AnotherStreetIsNotTakenForTheOneSeenBefore) {
   EXPECT_GT(closed.counters.searches, 0u);
   EXPECT_EQ(closed.closures.size(), 0u);
   EXPECT_EQ(closed.counters.low_score + closed.counters.off_window, closed.counters.searches);
+}
+
+// A route that ends 6 m into a submap: the run's last metres are matched too, at its end
+// (a loop that ends where it began closes there), and the closure says where they truly lie.
+TEST(LoopCloser, TheLastMetresOfTheRunAreMatchedAtItsEnd) {
+  BLOCKMAP_LONG_TEST();
+  const LoopClosureConfig config;
+  const std::vector<Facade> walls = street_of(8.0);
+  Arena arena(LoopCloser::arena_bytes(config) + PathSmoother::arena_bytes(PathSmootherConfig{}));
+  LoopCloser closer;
+  closer.init(arena, config);
+  PathSmoother path;
+  path.init(arena, PathSmootherConfig{});
+  // 100 m back, then on to 7 m past the next submap finished.
+  double end_m = 2.0 * kStreetM;
+  std::vector<Pose2> truths;
+  for (double s = 0.0; s <= end_m; s += kScanStepM) {
+    const Pose2 truth = street_truth_at(s);
+    truths.push_back(truth);
+    path.add(drifted_back(truth), std::nullopt);
+    std::array<LoopClosure, kMaxClosureCandidates> found{};
+    if (closer.add_scan(drifted_back(truth), laser_scan_at(walls, truth))) {
+      static_cast<void>(closer.find_closures(path, found));
+      if (s >= kStreetM + 100.0 && end_m == 2.0 * kStreetM) {
+        end_m = s + 7.0;
+      }
+    }
+  }
+  const std::uint64_t submaps = closer.counters().submaps;
+  const std::uint64_t searches = closer.counters().searches;
+  ASSERT_TRUE(closer.finish_last_submap());
+  EXPECT_EQ(closer.counters().submaps, submaps + 1);
+  EXPECT_FALSE(closer.finish_last_submap()) << "nothing is left open";
+  std::array<LoopClosure, kMaxClosureCandidates> found{};
+  const std::size_t count = closer.find_closures(path, found);
+  EXPECT_GT(closer.counters().searches, searches);
+  ASSERT_GE(count, 1u);
+  const auto truth_at = [&](TimestampNs stamp_ns) {
+    return *std::find_if(truths.begin(), truths.end(),
+                         [&](const Pose2& p) { return p.stamp_ns == stamp_ns; });
+  };
+  for (std::size_t k = 0; k < count; ++k) {
+    const Eigen::Vector3d truly =
+        pose_in_frame_of(truth_at(found[k].earlier.stamp_ns), truth_at(found[k].later.stamp_ns));
+    EXPECT_LT((found[k].measured - truly).head<2>().norm(), 0.2);
+  }
 }
 
 TEST(LoopCloser, ARouteOfAnyLengthKeepsItsSubmapsInTheirCapacity) {

@@ -10,11 +10,13 @@
 // pitching RMP swings a decimetre fore and aft, nothing against a code fix's 2 m but several
 // times an RTK fix's error.
 //
-// Height: the filter is planar. z is the antenna's height in the local frame less its mount's,
-// low-passed over height_smoothing_s: a city block is nearly flat, and a code receiver's
-// vertical error (about 3 m) is larger than any slope the robot sees in a minute. A
-// carrier-phase (RTK) fix's height is good to centimetres and is followed within
-// rtk_height_smoothing_s, so that kerbs and slopes come out where they are.
+// Height: the filter is planar. z is the antenna's height in the local frame less its mount's.
+// A code receiver's height wanders metres within a minute, and the RMP's pitch is its balance,
+// not the street's grade: with code fixes the map is level at the first fix's height (heights
+// are the street's under the robot), unless level_with_code_fixes is off and they are
+// low-passed over height_smoothing_s. A carrier-phase (RTK) fix's height is good to
+// centimetres and is followed within rtk_height_smoothing_s, so that kerbs and slopes come
+// out where they are.
 #pragma once
 
 #include <array>
@@ -51,6 +53,7 @@ struct LocalizerConfig {
   LocalizeConfig filter;
   // The GPS antenna in the robot frame (x forward, y left, z up), metres.
   Eigen::Vector3d antenna_m = Eigen::Vector3d(0.0, 0.0, 1.3);
+  bool level_with_code_fixes = true;
   double height_smoothing_s = 120.0;
   double rtk_height_smoothing_s = 1.0;
   // A fore/aft increment faster than this is the base resetting its integrators (power

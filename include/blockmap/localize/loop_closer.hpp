@@ -107,6 +107,10 @@ class LoopCloser {
   // given) and the points its match used, in the robot frame. Returns whether a submap was
   // finished (find_closures() is due).
   bool add_scan(const Pose2& pose, std::span<const Eigen::Vector2d> robot_points_m) noexcept;
+  // At the end of the run: the submap being filled is finished as it is, when the robot drove
+  // at least half a submap's length into it (a loop that ends where it began closes in its
+  // last metres). Returns whether it was (find_closures() is due).
+  bool finish_last_submap() noexcept;
 
   // After add_scan() finished a submap: it is matched against the earlier ones near it by
   // `path`'s solution, the verified closures into `found` (at most max_candidates); returns

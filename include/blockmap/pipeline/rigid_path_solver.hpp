@@ -66,8 +66,9 @@ class RigidPathSolver final : public map::PlaneView {
                         std::span<const Eigen::Vector2d> match_points_m) noexcept;
   // Whether a solve came since the last call (the view is due for a refresh).
   [[nodiscard]] bool take_solved() noexcept;
-  // The end: the whole run's path once more (before the last planes are finalized, so that
-  // they are shown where it puts them), then every final plane moved there for good.
+  // The end: the last submap's revisits, and the whole run's path once more (before the last
+  // planes are finalized, so that they are shown where it puts them), then every final plane
+  // moved there for good.
   void solve_final() noexcept;
   void move_finals(map::PlaneRegistry& registry) noexcept;
 
@@ -103,6 +104,9 @@ class RigidPathSolver final : public map::PlaneView {
   [[nodiscard]] bool placed() const noexcept {
     return path_.counters().fixes > 0 || path_.counters().placings > 0 || path_.closure_count() > 0;
   }
+  // The submap just finished matched against the earlier ones: its verified revisits into
+  // the path.
+  void close_loops() noexcept;
   // The first keyframe stamped at or after `stamp_ns` (keyframe_count() when none is).
   [[nodiscard]] std::size_t first_keyframe_from(TimestampNs stamp_ns) const noexcept;
   // The keyframe nearest `point_m` (x, y) among those from `from_ns` to `to_ns` that `seen`

@@ -3,7 +3,9 @@
 // truth, a survey), interpolated between the two around a scan's time.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
+#include <span>
 
 #include "blockmap/core/arena.hpp"
 #include "blockmap/core/ring_buffer.hpp"
@@ -30,6 +32,9 @@ class ScanPoses {
   void on_base(const msg::OdometrySample& odometry, const msg::ImuSample& imu) noexcept;
   localize::GpsOutcome on_fix(const localize::GpsObservation& fix, double up_m) noexcept;
   void on_pose(const localize::Pose3& pose) noexcept;
+  // kExternal: the given poses not drained yet, each once, oldest first (what the filter's
+  // final poses are to trajectory.csv).
+  std::size_t drain_given(std::span<localize::Pose3> out) noexcept;
 
   // The newest time the poses cover; false before the first pose.
   [[nodiscard]] bool horizon(TimestampNs& out) const noexcept;
@@ -52,6 +57,7 @@ class ScanPoses {
   TimestampNs last_base_ns_ = 0;  // the last base sample in
   bool any_base_ = false;
   RingBufferRef<localize::Pose3> given_;  // kExternal: the newest given poses
+  std::size_t undrained_ = 0;             // of those, the newest not drained yet
 };
 
 }  // namespace blockmap::pipeline
