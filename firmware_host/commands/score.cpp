@@ -261,10 +261,19 @@ Estimate read_estimate(const fs::path& folder) {
   return estimate;
 }
 
+// One true building against the footprint that overlaps it most ("" and 0 when none does).
+struct BuildingMatch {
+  int id = 0;
+  std::string shape;
+  std::string mapped_shape;
+  double iou = 0.0;
+};
+
 struct BuildingScore {
   std::size_t buildings = 0;
   std::size_t shapes_right = 0;
   double mean_iou = 0.0;
+  std::vector<BuildingMatch> each;
 };
 
 // Each true building against the estimated footprint that overlaps it most, laid onto the
@@ -290,6 +299,7 @@ BuildingScore score_buildings(const Truth& truth, const Estimate& estimate,
     ++score.buildings;
     score.shapes_right += best_shape == building.shape ? 1U : 0U;
     iou_sum += best_iou;
+    score.each.push_back({building.id, building.shape, best_shape, best_iou});
   }
   score.mean_iou = score.buildings == 0 ? 0.0 : iou_sum / static_cast<double>(score.buildings);
   return score;
@@ -333,6 +343,13 @@ nlohmann::json score_json(const Score& score) {
                      {"offset_within",
                       path.offset_m.norm() <= score.receiver.mean_m.norm() + kOffsetAllowanceM}};
   }
+  nlohmann::json each = nlohmann::json::array();
+  for (const BuildingMatch& match : buildings.each) {
+    each.push_back({{"id", match.id},
+                    {"shape", match.shape},
+                    {"mapped_shape", match.mapped_shape},
+                    {"iou", match.iou}});
+  }
   return {{"path", path_json},
           {"receiver", receiver_json},
           {"matched_path", path_error_json(score.matched)},
@@ -347,7 +364,8 @@ nlohmann::json score_json(const Score& score) {
           {"buildings",
            {{"buildings", buildings.buildings},
             {"shapes_right", buildings.shapes_right},
-            {"mean_iou", buildings.mean_iou}}}};
+            {"mean_iou", buildings.mean_iou},
+            {"each", each}}}};
 }
 
 void print_score(std::ostream& out, const Score& score) {

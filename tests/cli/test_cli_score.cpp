@@ -77,6 +77,10 @@ TEST_F(ScoreCommand, ScoresAReplaysMapAfterLayingItsPathOntoTheTruth) {
   EXPECT_LE(score["planes"]["structural_real"].get<int>(),
             score["planes"]["structural"].get<int>());
   EXPECT_EQ(score["buildings"]["buildings"].get<int>(), 1);  // usc_block's one building
+  const nlohmann::json& each = score["buildings"]["each"];
+  ASSERT_EQ(each.size(), 1u);
+  EXPECT_EQ(each[0]["shape"], "rect");
+  EXPECT_DOUBLE_EQ(each[0]["iou"].get<double>(), score["buildings"]["mean_iou"].get<double>());
   // The same in three lines.
   const testing::CliResult lines =
       run_cli({"score", map_.string(), (logs_ / "truth.json").string()});
