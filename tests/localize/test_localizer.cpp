@@ -53,6 +53,8 @@ class Feeder {
  public:
   Feeder(Localizer& localizer, bool rocking, double pitch_rad = kPitchRad)
       : localizer_(localizer), rocking_(rocking), pitch_rad_(pitch_rad) {}
+  // The receiver's heights wander by this (metres at a stamp) besides its error.
+  void wander_height(double (*wander_m)(TimestampNs)) { height_wander_m_ = wander_m; }
   // `reset`: the base restarts its integrators at this sample.
   void next(const synthetic::Sample& s, bool reset = false) {
     integrated_m_ = reset ? 0.0 : integrated_m_ + s.distance_m;
@@ -72,7 +74,8 @@ class Feeder {
       GpsObservation fix = s.fix;
       fix.east_m += antenna_m.x();
       fix.north_m += antenna_m.y();
-      static_cast<void>(localizer_.on_fix(fix, kGroundUpM + antenna_m.z()));
+      const double wander_m = height_wander_m_ != nullptr ? height_wander_m_(s.stamp_ns) : 0.0;
+      static_cast<void>(localizer_.on_fix(fix, kGroundUpM + antenna_m.z() + wander_m));
     }
   }
 
@@ -81,6 +84,7 @@ class Feeder {
   bool rocking_ = false;
   double pitch_rad_ = kPitchRad;
   double integrated_m_ = 100.0;  // the base's counter need not start at zero
+  double (*height_wander_m_)(TimestampNs) = nullptr;
 };
 
 // The whole drive; `reset_at` (a sample index) makes the base restart its integrators there.
@@ -168,27 +172,16 @@ TEST(Localizer, ACodeReceiversWanderingHeightLeavesTheMapLevel) {
   synthetic::DriveOptions options;
   options.duration_s = 180.0;
   const std::vector<synthetic::Sample> samples = synthetic::drive(options);
-  const auto wander_m = [](TimestampNs stamp_ns) {
-    return 2.0 * std::sin(2.0 * std::numbers::pi * seconds_from_ns(stamp_ns) / 90.0);
-  };
   const auto height_span_m = [&](const LocalizerConfig& config) {
     Fixture fixture(config);
-    double integrated_m = 0.0;
+    Feeder feeder(fixture.localizer, false);
+    feeder.wander_height([](TimestampNs stamp_ns) {
+      return 2.0 * std::sin(2.0 * std::numbers::pi * seconds_from_ns(stamp_ns) / 90.0);
+    });
     double lowest_m = std::numeric_limits<double>::max();
     double highest_m = std::numeric_limits<double>::lowest();
     for (const synthetic::Sample& s : samples) {
-      integrated_m += s.distance_m;
-      msg::OdometrySample odometry;
-      odometry.header.stamp_ns = s.stamp_ns;
-      odometry.fore_aft_distance_m = integrated_m;
-      msg::ImuSample imu;
-      imu.header.stamp_ns = s.stamp_ns;
-      imu.yaw_rate_radps = s.yaw_rate_radps;
-      fixture.localizer.on_base(odometry, imu);
-      if (s.has_fix) {
-        static_cast<void>(fixture.localizer.on_fix(
-            s.fix, kGroundUpM + config.antenna_m.z() + wander_m(s.stamp_ns)));
-      }
+      feeder.next(s);
       Pose3 pose;
       if (fixture.localizer.map_pose_at(s.stamp_ns, pose)) {
         lowest_m = std::min(lowest_m, pose.z_m);

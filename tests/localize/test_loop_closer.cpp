@@ -41,15 +41,25 @@ struct StreetDrive {
   std::size_t memory_bytes = 0;
 };
 
+// A loop closer and the path it reads, in one arena.
+struct CloserAndPath {
+  explicit CloserAndPath(const LoopClosureConfig& config)
+      : arena(LoopCloser::arena_bytes(config) + PathSmoother::arena_bytes(PathSmootherConfig{})) {
+    closer.init(arena, config);
+    path.init(arena, PathSmootherConfig{});
+  }
+  Arena arena;
+  LoopCloser closer;
+  PathSmoother path;
+};
+
 // Drives out and back, the way back seeing `back_walls`, and collects every closure.
 StreetDrive drive_out_and_back(const LoopClosureConfig& config,
                                const std::vector<Facade>& back_walls) {
   const std::vector<Facade> out_walls = street_of(8.0);
-  Arena arena(LoopCloser::arena_bytes(config) + PathSmoother::arena_bytes(PathSmootherConfig{}));
-  LoopCloser closer;
-  closer.init(arena, config);
-  PathSmoother path;
-  path.init(arena, PathSmootherConfig{});
+  CloserAndPath run(config);
+  LoopCloser& closer = run.closer;
+  PathSmoother& path = run.path;
   StreetDrive closed;
   std::array<LoopClosure, kMaxClosureCandidates> found{};
   for (double s = 0.0; s <= 2.0 * kStreetM; s += kScanStepM) {
@@ -125,17 +135,14 @@ TEST(LoopCloser, AnotherStreetIsNotTakenForTheOneSeenBefore) {
   EXPECT_EQ(closed.counters.low_score + closed.counters.off_window, closed.counters.searches);
 }
 
-// A route that ends 6 m into a submap: the run's last metres are matched too, at its end
+// A route that ends 7 m into a submap: the run's last metres are matched too, at its end
 // (a loop that ends where it began closes there), and the closure says where they truly lie.
 TEST(LoopCloser, TheLastMetresOfTheRunAreMatchedAtItsEnd) {
   BLOCKMAP_LONG_TEST();
-  const LoopClosureConfig config;
   const std::vector<Facade> walls = street_of(8.0);
-  Arena arena(LoopCloser::arena_bytes(config) + PathSmoother::arena_bytes(PathSmootherConfig{}));
-  LoopCloser closer;
-  closer.init(arena, config);
-  PathSmoother path;
-  path.init(arena, PathSmootherConfig{});
+  CloserAndPath run{LoopClosureConfig{}};
+  LoopCloser& closer = run.closer;
+  PathSmoother& path = run.path;
   // 100 m back, then on to 7 m past the next submap finished.
   double end_m = 2.0 * kStreetM;
   std::vector<Pose2> truths;
