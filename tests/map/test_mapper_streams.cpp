@@ -57,7 +57,7 @@ TEST(MapperSim, TheSameRunGivesTheSameStreamWithOrWithoutKeptShapes) {
 // daemon's pipeline thread, whose batches grow when it falls behind).
 TEST(MapperSim, TheSameMessagesBatchedAnyWayGiveTheSameStream) {
   BLOCKMAP_LONG_TEST();
-  testing::RecordedMapperInputs inputs("usc_block", kDeterminismDurationS + 10.0);
+  testing::RecordedMapperInputs inputs("usc_block", kDeterminismDurationS + 40.0);
   ASSERT_TRUE(inputs.started);
   // In time order, as blockmap replay and the daemon's replay source hand them over.
   using Event = testing::RecordedMapperInputs::Event;
@@ -119,8 +119,6 @@ TEST(MapperSim, TheSameMessagesBatchedAnyWayGiveTheSameStream) {
 // With the rigid path the stream shows each plane where the latest solve puts it, so what a
 // consumer holds as the run goes is the final map, not the map drawn with the poses of the
 // moment that the end moves by a metre or two; the final list is the same, bit for bit.
-// Seed 3 (2026-12-04): the stream before its last update 0.08 m off the final list (1.40 m
-// as drawn), three quarters of the way 0.25 m (1.87 m), half way 0.83 m (2.06 m).
 TEST(MapperSim, TheStreamShowsTheRigidMapAsTheRunGoes) {
 #if defined(BLOCKMAP_QUICK_WORLDS)
   GTEST_SKIP() << "the optimized host trees drive usc_block with the rigid path";
@@ -128,18 +126,24 @@ TEST(MapperSim, TheStreamShowsTheRigidMapAsTheRunGoes) {
   const MapperRun shown = map_world({.world = "usc_block", .rigid_path = RigidPath::kOn});
   const MapperRun drawn =
       map_world({.world = "usc_block", .rigid_path = RigidPath::kOn, .rigid_view = false});
-  for (const double fraction : {0.5, 0.75, 1.0}) {
+  for (const double fraction : {0.5, 0.75}) {
     std::printf("after %.0f %% of the updates: %.3f m off the final list as shown, %.3f m drawn\n",
                 100.0 * fraction, stream_off_final_m(shown, fraction),
                 stream_off_final_m(drawn, fraction));
   }
+  // Before the end's updates: its last solve (with the last metres' loop closures), the move
+  // of every final plane, and the joins of those it lays on one surface.
+  const double shown_end_m = stream_off_final_after_m(shown, shown.updates_before_end);
+  const double drawn_end_m = stream_off_final_after_m(drawn, drawn.updates_before_end);
+  std::printf("before the end's updates: %.3f m off the final list as shown, %.3f m drawn\n",
+              shown_end_m, drawn_end_m);
   std::printf(
       "%zu updates, %zu bytes shown; %zu updates, %zu bytes drawn; %llu planes moved by "
       "the view\n",
       shown.updates, shown.stream.size(), drawn.updates, drawn.stream.size(),
       static_cast<unsigned long long>(shown.registry.view_moved));
-  EXPECT_GT(stream_off_final_m(drawn, 1.0), 0.5) << "the end's move is the receiver's error";
-  EXPECT_LT(stream_off_final_m(shown, 1.0), 0.25 * stream_off_final_m(drawn, 1.0));
+  EXPECT_GT(drawn_end_m, 0.5) << "the end's move is the receiver's error";
+  EXPECT_LT(shown_end_m, 0.25 * drawn_end_m);
   EXPECT_LT(stream_off_final_m(shown, 0.75), 0.5 * stream_off_final_m(drawn, 0.75));
   EXPECT_GT(shown.registry.view_moved, 0u);
   EXPECT_EQ(drawn.registry.view_moved, 0u);
@@ -166,7 +170,8 @@ TEST(MapperSim, AFullFinalListKeepsTheStreamAndTheListOneMap) {
   std::printf("%llu final planes dropped for %zu kept; %llu shown again by the view\n",
               static_cast<unsigned long long>(run.registry.final_dropped), run.final_planes.size(),
               static_cast<unsigned long long>(run.registry.view_moved));
-  EXPECT_EQ(run.final_planes.size(), kFinalPlanes);
+  // Full, less those the end's move laid on a bigger one's surface and joined to it.
+  EXPECT_EQ(run.final_planes.size() + run.registry.finals_joined, kFinalPlanes);
   EXPECT_GT(run.registry.final_dropped, 20u);
   EXPECT_GT(run.registry.view_moved, 0u);
   expect_stream_gives_final_list(run);

@@ -71,6 +71,7 @@ struct MapperRun {
   std::map<std::uint32_t, msg::PlanePatch> streamed;
   std::map<std::uint32_t, msg::PlaneChangeKind> last_change;
   std::vector<std::vector<msg::PlaneChange>> update_changes;  // every update's, in order
+  std::size_t updates_before_end = 0;  // of those, the ones before the end of the input
   std::size_t updates = 0;
   bool id_reused = false;            // a change to a plane after it was removed
   std::vector<std::uint8_t> stream;  // every update as the binary plane stream encodes it
@@ -269,6 +270,7 @@ inline MapperRun map_world(const WorldRun& w) {
     simulated->feed(*mapper, w.poses == PoseSource::kExternal);
     consume();
   }
+  run.updates_before_end = run.update_changes.size();
   mapper->end_of_input();
   consume();
   if (solved && !truth_path.empty()) {
@@ -351,14 +353,12 @@ inline void expect_stream_gives_final_list(const MapperRun& run) {
   }
 }
 
-// How far the planes a consumer of the stream holds after the first `fraction` of the updates
-// (all but the last at 1) lie from where the final list has them: the mean horizontal
-// distance between centroids, over the final planes the stream held by then.
-inline double stream_off_final_m(const MapperRun& run, double fraction) {
+// How far the planes a consumer of the stream holds after its first `updates` updates lie
+// from where the final list has them: the mean horizontal distance between centroids, over
+// the final planes the stream held by then.
+inline double stream_off_final_after_m(const MapperRun& run, std::size_t updates) {
   std::map<std::uint32_t, msg::PlanePatch> held;
-  const auto updates =
-      static_cast<std::size_t>(fraction * static_cast<double>(run.update_changes.size() - 1));
-  for (std::size_t u = 0; u < updates; ++u) {
+  for (std::size_t u = 0; u < std::min(updates, run.update_changes.size()); ++u) {
     for (const msg::PlaneChange& change : run.update_changes[u]) {
       if (change.change == msg::PlaneChangeKind::kRemoved) {
         held.erase(change.plane.id);
@@ -377,6 +377,12 @@ inline double stream_off_final_m(const MapperRun& run, double fraction) {
     }
   }
   return count == 0 ? 0.0 : sum_m / static_cast<double>(count);
+}
+
+// ... after the first `fraction` of the updates (all but the last at 1).
+inline double stream_off_final_m(const MapperRun& run, double fraction) {
+  return stream_off_final_after_m(
+      run, static_cast<std::size_t>(fraction * static_cast<double>(run.update_changes.size() - 1)));
 }
 
 // The planes issue's accuracy (docs/mapper.md, Accuracy), found faces at least `min_recall`
