@@ -41,6 +41,7 @@
 #include "commands/mapping.hpp"
 #include "commands/prior_map_file.hpp"
 #include "commands/recorded_run.hpp"
+#include "commands/truth_trajectory.hpp"
 
 namespace blockmap::cli {
 namespace {
@@ -78,13 +79,7 @@ std::vector<localize::Pose3> read_true_poses(const fs::path& path, std::string& 
     return poses;
   }
   try {
-    const nlohmann::json truth = nlohmann::json::parse(file);
-    for (const nlohmann::json& pose : truth.at("trajectory")) {
-      poses.push_back({ns_from_seconds(pose.at("t_s").get<double>()), pose.at("x_m").get<double>(),
-                       pose.at("y_m").get<double>(), pose.at("z_m").get<double>(),
-                       pose.at("roll_rad").get<double>(), pose.at("pitch_rad").get<double>(),
-                       pose.at("yaw_rad").get<double>()});
-    }
+    poses = true_poses_of(nlohmann::json::parse(file));
   } catch (const nlohmann::json::exception& error) {
     problem = path.string() + ": not a truth.json (" + error.what() + ")";
     return {};

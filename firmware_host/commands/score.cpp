@@ -22,6 +22,7 @@
 #include "blockmap/hal/sim/truth_score.hpp"
 #include "cli.hpp"
 #include "commands/commands.hpp"
+#include "commands/truth_trajectory.hpp"
 #include "outputs/plane_json.hpp"
 
 namespace blockmap::cli {
@@ -96,10 +97,8 @@ Truth read_truth(const fs::path& path) {
   const nlohmann::json document = read_json(path);
   Truth truth;
   try {
-    for (const nlohmann::json& pose : document.at("trajectory")) {
-      truth.path.push_back({pose.at("t_s").get<double>(),
-                            {pose.at("x_m").get<double>(), pose.at("y_m").get<double>(),
-                             pose.at("z_m").get<double>()}});
+    for (const localize::Pose3& pose : true_poses_of(document)) {
+      truth.path.push_back({seconds_from_ns(pose.stamp_ns), {pose.x_m, pose.y_m, pose.z_m}});
     }
     for (const nlohmann::json& face : document.at("faces")) {
       hal::sim::TruthFace out;

@@ -162,7 +162,6 @@ bool LoopCloser::add_scan(const Pose2& pose,
     return false;
   }
   finish_submap();
-  open_ = false;
   return true;
 }
 
@@ -171,7 +170,6 @@ bool LoopCloser::finish_last_submap() noexcept {
     return false;
   }
   finish_submap();
-  open_ = false;
   return true;
 }
 
@@ -252,6 +250,7 @@ void LoopCloser::finish_submap() noexcept {
       keep == 0 ? Eigen::Vector2d::Zero() : Eigen::Vector2d(sum_m / static_cast<double>(keep));
   submap.count = static_cast<std::uint32_t>(keep);
   ++counters_.submaps;
+  open_ = false;
 }
 
 void LoopCloser::thin_submaps() noexcept {

@@ -148,6 +148,7 @@ class LoopCloser {
   void add_cells(const Pose2& pose, std::span<const Eigen::Vector2d> robot_points_m) noexcept;
   void add_cell(const Eigen::Vector2d& local_m) noexcept;
   void compact_staging() noexcept;
+  // The open submap, as it is, into the kept ones; none is open after it.
   void finish_submap() noexcept;
   [[nodiscard]] std::uint32_t free_slot() noexcept;
   void thin_submaps() noexcept;
