@@ -21,6 +21,7 @@ void read_scan_matching_table(TableReader& t, localize::ScanMatchConfig& c) {
   c.max_match_range_m = t.positive_or("max_match_range_m", c.max_match_range_m);
   c.map_update_m = t.non_negative_or("map_update_m", c.map_update_m);
   c.map_update_rad = t.non_negative_or("map_update_rad", c.map_update_rad);
+  c.forget_after_m = t.non_negative_or("forget_after_m", c.forget_after_m);
   c.join_gap_m = t.non_negative_or("join_gap_m", c.join_gap_m);
   c.normal_neighbour_m = t.positive_or("normal_neighbour_m", c.normal_neighbour_m);
   c.max_points = static_cast<std::uint32_t>(t.capacity_or("max_points", c.max_points));

@@ -1,6 +1,7 @@
 #include "blockmap/localize/scan_matcher.hpp"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <numbers>
@@ -15,10 +16,15 @@
 namespace blockmap::localize {
 namespace {
 
-// A hit adds this to its cell's count (255 at most): two hits make a cell fully occupied, one
-// makes it half so, so a single stray return (a person, a leaf) weighs half a surface.
-constexpr int kHitIncrement = 128;
-constexpr double kInverseFullCount = 1.0 / 255.0;
+// A cell holds its hits (two at most: two make it fully occupied, one half so, so a single
+// stray return, a person or a leaf, weighs half a surface) in its low bits, and the epoch of
+// its last hit above them (ScanMatchConfig::forget_after_m).
+constexpr std::uint8_t kHitsMask = 0x3;
+constexpr int kEpochShift = 2;
+constexpr std::uint32_t kEpochMask = 0x3F;
+constexpr std::array<double, 3> kValueOfHits = {0.0, 128.0 / 255.0, 1.0};
+// A cell lives this many epochs after its last hit: forget_after_m is this many epochs long.
+constexpr std::uint32_t kEpochsKept = 4;
 // The value from which a point counts as on the map (between two half-occupied cells).
 constexpr double kOnMapValue = 0.25;
 // The prior's weight on yaw is its weight on position times this lever squared: a turn of a
@@ -76,6 +82,9 @@ std::string validate(const ScanMatchConfig& config) {
   if (!(config.min_overlap >= 0.0 && config.min_overlap <= 1.0) || !(config.max_step_m > 0.0) ||
       !(config.max_step_rad > 0.0)) {
     return "scan_matching: min_overlap must be in [0, 1], max_step_m and max_step_rad positive";
+  }
+  if (!(config.forget_after_m >= 0.0)) {
+    return "scan_matching: forget_after_m must not be negative (0: never forget)";
   }
   if (!(config.map_update_m >= 0.0) || !(config.map_update_rad >= 0.0)) {
     return "scan_matching: map_update_m and map_update_rad must not be negative";
@@ -248,8 +257,8 @@ double ScanMatcher::cell_value(const Level& level, std::int64_t x, std::int64_t 
     return 0.0;
   }
   const std::int64_t mask = level.across - 1;
-  return level.cells[static_cast<std::size_t>((y & mask) * level.across + (x & mask))] *
-         kInverseFullCount;
+  return kValueOfHits
+      [level.cells[static_cast<std::size_t>((y & mask) * level.across + (x & mask))] & kHitsMask];
 }
 
 ScanMatcher::Sample ScanMatcher::sample(const Level& level, double x_m, double y_m) const noexcept {
@@ -265,9 +274,8 @@ std::uint8_t ScanMatcher::hits_at(const Eigen::Vector2d& point_m) const noexcept
   }
   const Level& level = levels_[0];
   return static_cast<std::uint8_t>(
-      std::lround(cell_value(level, cell_of(point_m.x(), level.inverse_cell_m),
-                             cell_of(point_m.y(), level.inverse_cell_m)) /
-                  kInverseFullCount));
+      std::lround(255.0 * cell_value(level, cell_of(point_m.x(), level.inverse_cell_m),
+                                     cell_of(point_m.y(), level.inverse_cell_m))));
 }
 
 void ScanMatcher::mark(Level& level, std::int64_t x, std::int64_t y) noexcept {
@@ -279,7 +287,28 @@ void ScanMatcher::mark(Level& level, std::int64_t x, std::int64_t y) noexcept {
   const std::int64_t mask = level.across - 1;
   std::uint8_t& cell =
       level.cells[static_cast<std::size_t>((y & mask) * level.across + (x & mask))];
-  cell = static_cast<std::uint8_t>(std::min(255, cell + kHitIncrement));
+  const int hits = std::min(2, (cell & kHitsMask) + 1);
+  cell = static_cast<std::uint8_t>((epoch_ << kEpochShift) | static_cast<std::uint32_t>(hits));
+}
+
+void ScanMatcher::age(double step_m) noexcept {
+  if (!(config_.forget_after_m > 0.0) || !placed_) {
+    return;
+  }
+  epoch_travel_m_ += step_m;
+  if (epoch_travel_m_ < config_.forget_after_m / kEpochsKept) {
+    return;
+  }
+  epoch_travel_m_ = 0.0;
+  epoch_ = (epoch_ + 1) & kEpochMask;
+  for (Level& level : levels_) {
+    for (std::uint8_t& cell : level.cells) {
+      const std::uint32_t last_hit = static_cast<std::uint32_t>(cell) >> kEpochShift;
+      if (((epoch_ - last_hit) & kEpochMask) >= kEpochsKept) {
+        cell = 0;
+      }
+    }
+  }
 }
 
 void ScanMatcher::insert(std::span<const Eigen::Vector3f> points_m, double robot_z_m) noexcept {
@@ -455,7 +484,8 @@ const PlanarCorrection& ScanMatcher::add_scan(const Pose2& raw_pose, const Pose2
   // 1. The prediction, in the matcher's own frame: the scan before's pose there, moved as the
   //    odometry moved since. The first scan sets that frame: where the filter put it.
   Pose2 predicted = raw_pose;
-  if (have_last_) {
+  const bool had_last = have_last_;
+  if (had_last) {
     predicted = moved_by(last_matched_, last_odometry_, odometry_pose);
     predicted.yaw_rad = wrap_angle(predicted.yaw_rad - yaw_rate_bias_radps_ * since_last_s);
   }
@@ -464,6 +494,9 @@ const PlanarCorrection& ScanMatcher::add_scan(const Pose2& raw_pose, const Pose2
   last_stamp_ns_ = raw_pose.stamp_ns;
   last_odometry_ = odometry_pose;
   const Eigen::Vector3d pose = matched_pose(predicted, raw_pose, robot_z_m, points_m);
+  if (had_last) {
+    age(std::hypot(pose.x() - last_matched_.x_m, pose.y() - last_matched_.y_m));
+  }
   last_matched_ = {raw_pose.stamp_ns, pose.x(), pose.y(), wrap_angle(pose.z())};
   if (was_tracking && tracking_) {
     learn_yaw_rate_bias(wrap_angle(pose.z() - predicted.yaw_rad));

@@ -5,9 +5,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <numbers>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -306,6 +308,42 @@ TEST(ScanMatcher, RefusesWhatItCannotMatchAndForgetsWhatLeftTheGrid) {
   EXPECT_EQ(matcher.counters().resets, 1u);
 }
 
+// The grid keeps what the robot saw lately: a cell no scan has hit over forget_after_m of
+// travel is cleared, so that a street seen long ago (on another pass, with another drift)
+// does not pull the pose; what the scans still hit stays.
+TEST(ScanMatcher, ForgetsWhatNoScanHasHitForAWhile) {
+  const std::vector<Segment> scene = street();
+  const auto drive = [&scene](double forget_after_m, Eigen::Vector2d& first_hit_m,
+                              Eigen::Vector2d& last_hit_m) {
+    ScanMatchConfig config = street_config();
+    config.forget_after_m = forget_after_m;
+    Arena arena(ScanMatcher::arena_bytes(config));
+    ScanMatcher matcher;
+    matcher.init(arena, config);
+    arena.seal();
+    constexpr int kScans = 600;  // 9.6 m east
+    for (int scan = 0; scan <= kScans; ++scan) {
+      const Pose2 truth = truth_at(scan);
+      const std::vector<Eigen::Vector3f> points = scan_drawn_at(scene, truth, truth, 0.8);
+      (void)matcher.add_scan(truth, truth, 0.0, points);
+      // The return straight to the left: the north facade beside the robot.
+      const Eigen::Vector3f& left = points[points.size() - 1];
+      (scan == 0 ? first_hit_m : last_hit_m) = Eigen::Vector2d(left.x(), left.y());
+    }
+    EXPECT_GT(matcher.counters().matched, std::uint64_t{kScans} * 9 / 10);
+    return std::pair<int, int>(matcher.hits_at(first_hit_m), matcher.hits_at(last_hit_m));
+  };
+  Eigen::Vector2d first_hit_m;
+  Eigen::Vector2d last_hit_m;
+  const auto [first_kept, last_kept] = drive(0.0, first_hit_m, last_hit_m);
+  EXPECT_GT(first_kept, 0) << "never forgetting, the grid holds the start";
+  EXPECT_GT(last_kept, 0);
+  ASSERT_GT((last_hit_m - first_hit_m).norm(), 9.0);
+  const auto [first_forgotten, last_still] = drive(4.0, first_hit_m, last_hit_m);
+  EXPECT_EQ(first_forgotten, 0) << "9.6 m on, the facade beside the start is forgotten";
+  EXPECT_GT(last_still, 0) << "what the last scans hit is kept";
+}
+
 TEST(ScanMatcher, AnUnusableConfigurationIsNamed) {
   ScanMatchConfig config = street_config();
   EXPECT_EQ(validate(config), "");
@@ -320,6 +358,9 @@ TEST(ScanMatcher, AnUnusableConfigurationIsNamed) {
   config = street_config();
   config.max_height_m = config.min_height_m;
   EXPECT_NE(validate(config).find("min_height_m"), std::string::npos);
+  config = street_config();
+  config.forget_after_m = -1.0;
+  EXPECT_NE(validate(config).find("forget_after_m"), std::string::npos);
   config.enabled = false;
   EXPECT_EQ(validate(config), "") << "a matcher that is off is not checked";
 }

@@ -11,9 +11,9 @@
 // What it keeps: a grid of where the level lasers hit, at `levels` resolutions (cell_m,
 // 2 cell_m, ...), each a ring of cells_across x cells_across cells indexed by the cell's
 // coordinates modulo its size, that scrolls with the robot without copying (as the voxel
-// window does). A cell holds a hit count that saturates; hits only, no ray casting: the
-// matcher needs where the surfaces are, and a moving person leaves a few hits that the
-// surfaces around outvote.
+// window does), and forgets what no scan has hit over the last forget_after_m of travel. A
+// cell holds a hit count that saturates; hits only, no ray casting: the matcher needs where
+// the surfaces are, and a moving person leaves a few hits that the surfaces around outvote.
 //
 // What it does with a scan (add_scan):
 //  1. The prediction, in the matcher's own frame: the matched pose of the scan before, moved
@@ -84,6 +84,12 @@ struct ScanMatchConfig {
   // A point's surface normal is taken from its neighbours in the scan this near to it.
   double normal_neighbour_m = 2.0;
   double map_update_rad = 0.035;
+  // The grid forgets a cell that no scan has hit over this much of the robot's travel (0:
+  // never): the scans are matched against what the robot saw lately, as Cartographer's local
+  // SLAM matches against its newest submaps. Come back to a street it saw long ago, it would
+  // otherwise match against that pass's cells and turn at once by the drift of the whole
+  // loop, which the path would take as motion; revisits are the loop closer's.
+  double forget_after_m = 120.0;
   std::uint32_t max_points = 512;
   std::uint32_t min_points = 30;
   // A match counts when at least this share of its points lies on the map, and moves the
@@ -235,6 +241,9 @@ class ScanMatcher {
   [[nodiscard]] double overlap(const Eigen::Vector3d& pose) const noexcept;
   void insert(std::span<const Eigen::Vector3f> points_m, double robot_z_m) noexcept;
   void mark(Level& level, std::int64_t x, std::int64_t y) noexcept;
+  // The robot moved `step_m`: past an epoch's end, the cells last hit kEpochsKept epochs ago
+  // are cleared.
+  void age(double step_m) noexcept;
 
   ScanMatchConfig config_;
   std::span<Level> levels_;
@@ -250,6 +259,8 @@ class ScanMatcher {
   Pose2 last_matched_;     // the scan before's pose in the matcher's frame, and its odometry
   Pose2 last_odometry_;
   double yaw_rate_bias_radps_ = 0.0;  // kept across resets: the gyroscope's, not the grid's
+  std::uint32_t epoch_ = 0;           // of the cells' last hits (forget_after_m), mod 64
+  double epoch_travel_m_ = 0.0;       // the robot's travel since this epoch began
   PlanarCorrection to_grid_;          // the filter's frame to the matcher's, at the last scan
   Anchor anchor_;
   PlanarCorrection correction_;  // the filter's frame to the local frame: anchor after to_grid
