@@ -132,14 +132,22 @@ ScanMatchConfig street_config() {
   return config;
 }
 
+// A matcher on an arena of its own, sealed after init as the mapper seals its arena.
+struct OwnArena {
+  explicit OwnArena(const ScanMatchConfig& config) : arena(ScanMatcher::arena_bytes(config)) {
+    matcher.init(arena, config);
+    arena.seal();
+  }
+  Arena arena;
+  ScanMatcher matcher;
+};
+
 TEST(ScanMatcher, MatchedPosesFollowTheStreetWhereTheOdometryDrifts) {
   BLOCKMAP_LONG_TEST();
   const std::vector<Segment> scene = street();
   const ScanMatchConfig config = street_config();
-  Arena arena(ScanMatcher::arena_bytes(config));
-  ScanMatcher matcher;
-  matcher.init(arena, config);
-  arena.seal();
+  OwnArena sealed(config);
+  ScanMatcher& matcher = sealed.matcher;
   // The street runs east (x): across it is y. The odometry's distance is believed along the
   // way (ScanMatchConfig::prior_along_ratio), so along it the matched pose keeps most of the
   // odometry's 3 %; across it and in heading, where a wrong pose bends the walls, the grid
@@ -188,10 +196,8 @@ double heading_after_an_outage_rad(double bias_time_s, double& learnt_radps) {
   const std::vector<Segment> scene = street();
   ScanMatchConfig config = street_config();
   config.yaw_rate_bias_time_s = bias_time_s;
-  Arena arena(ScanMatcher::arena_bytes(config));
-  ScanMatcher matcher;
-  matcher.init(arena, config);
-  arena.seal();
+  OwnArena sealed(config);
+  ScanMatcher& matcher = sealed.matcher;
   constexpr int kMatchedScans = 75 * 30;
   constexpr int kScans = 75 * 40;
   Pose2 corrected;
@@ -233,10 +239,8 @@ TEST(ScanMatcher, TheAnchorLaysTheMatchedPathOntoTheFiltersPath) {
   const std::vector<Segment> scene = street();
   ScanMatchConfig config = street_config();
   config.anchor_time_s = 1e6;  // every sample counts alike
-  Arena arena(ScanMatcher::arena_bytes(config));
-  ScanMatcher matcher;
-  matcher.init(arena, config);
-  arena.seal();
+  OwnArena sealed(config);
+  ScanMatcher& matcher = sealed.matcher;
   constexpr int kScans = 75 * 30;
   Pose2 corrected;
   Pose2 truth;
@@ -262,10 +266,8 @@ TEST(ScanMatcher, RefusesWhatItCannotMatchAndForgetsWhatLeftTheGrid) {
   ScanMatchConfig config = street_config();
   config.cells_across = 128;  // 12.8 m
   config.levels = 3;
-  Arena arena(ScanMatcher::arena_bytes(config));
-  ScanMatcher matcher;
-  matcher.init(arena, config);
-  arena.seal();
+  OwnArena sealed(config);
+  ScanMatcher& matcher = sealed.matcher;
   const std::vector<Segment> scene = street();
   const Pose2 here = truth_at(0);
   const std::vector<Eigen::Vector3f> points = scan_drawn_at(scene, here, here, 0.8);
@@ -317,10 +319,8 @@ TEST(ScanMatcher, ForgetsWhatNoScanHasHitForAWhile) {
                               Eigen::Vector2d& last_hit_m) {
     ScanMatchConfig config = street_config();
     config.forget_after_m = forget_after_m;
-    Arena arena(ScanMatcher::arena_bytes(config));
-    ScanMatcher matcher;
-    matcher.init(arena, config);
-    arena.seal();
+    OwnArena sealed(config);
+    ScanMatcher& matcher = sealed.matcher;
     constexpr int kScans = 600;  // 9.6 m east
     for (int scan = 0; scan <= kScans; ++scan) {
       const Pose2 truth = truth_at(scan);
