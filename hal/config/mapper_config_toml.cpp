@@ -116,6 +116,8 @@ void read_prior_map_table(TableReader& t, localize::PriorMapConfig& m) {
   m.start_after_m = t.non_negative_or("start_after_m", m.start_after_m);
   m.start_sigma_m = t.non_negative_or("start_sigma_m", m.start_sigma_m);
   m.start_yaw_sigma_deg = t.non_negative_or("start_yaw_sigma_deg", m.start_yaw_sigma_deg);
+  m.frame_sigma_m = t.non_negative_or("frame_sigma_m", m.frame_sigma_m);
+  m.frame_time_s = t.positive_or("frame_time_s", m.frame_time_s);
   m.max_placing_sigma_m = t.positive_or("max_placing_sigma_m", m.max_placing_sigma_m);
   m.max_spread_m = t.positive_or("max_spread_m", m.max_spread_m);
   m.min_hit_share = t.non_negative_or("min_hit_share", m.min_hit_share);

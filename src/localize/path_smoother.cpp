@@ -170,6 +170,23 @@ void PathSmoother::place(const Pose2& odometry, const Pose2& drawn,
   ++counters_.placings;
 }
 
+void PathSmoother::hold_first(double sigma_m, double yaw_sigma_rad) noexcept {
+  first_information_[0] = 1.0 / (sigma_m * sigma_m + kMinMotionVarianceM2);
+  first_information_[1] = 1.0 / (yaw_sigma_rad * yaw_sigma_rad + kMinTurnVarianceRad2);
+}
+
+void PathSmoother::carry_map_offset(double sigma_m, double time_s) noexcept {
+  placings_carry_offset_ = true;
+  config_.bias_sigma_m = sigma_m;
+  config_.bias_time_s = time_s;
+}
+
+Eigen::Vector2d PathSmoother::slow_error(const Pose2& odometry) const noexcept {
+  BLOCKMAP_CHECK_MSG(count_ > 0, "slow_error() before the first keyframe");
+  const Keyframe& keyframe = keyframes_[keyframe_nearest(odometry.stamp_ns)];
+  return {keyframe.state[kBiasX], keyframe.state[kBiasY]};
+}
+
 bool PathSmoother::refuses(const Pose2& odometry) noexcept {
   const bool older = count_ > 0 && odometry.stamp_ns < keyframes_[count_ - 1].odometry.stamp_ns;
   counters_.refused += older ? 1 : 0;
@@ -184,7 +201,7 @@ PathSmoother::Keyframe& PathSmoother::keyframe_placed_at(
     append(odometry, drawn);
   }
   Keyframe& keyframe = keyframes_[count_ - 1];
-  if (counters_.fixes == 0 && counters_.placings == 0) {
+  if (counters_.fixes == 0 && counters_.placings == 0 && !holds_first()) {
     // The first fix says where the path is: every keyframe so far moves with it, so that
     // Gauss-Newton starts near the answer.
     const double dx = position_m.x() - keyframe.state[kX];
@@ -344,15 +361,38 @@ void PathSmoother::accumulate_fix(std::size_t i) noexcept {
 }
 
 void PathSmoother::accumulate_placings(std::size_t i) noexcept {
-  // 1/2 p' L p - m' p: the placings' sum, whose gradient is L p - m.
+  // 1/2 q' L q - m' q with q the position (plus the map's offset when carried): the
+  // placings' sum, whose gradient is L q - m.
   const Placings& placings = keyframes_[i].placings;
   const Eigen::Matrix2d information{{placings.information[0], placings.information[1]},
                                     {placings.information[1], placings.information[2]}};
-  const Eigen::Vector2d position(keyframes_[i].state[kX], keyframes_[i].state[kY]);
+  const Keyframe& keyframe = keyframes_[i];
+  Eigen::Vector2d position(keyframe.state[kX], keyframe.state[kY]);
+  if (placings_carry_offset_) {
+    position += Eigen::Vector2d(keyframe.state[kBiasX], keyframe.state[kBiasY]);
+  }
   const Eigen::Vector2d gradient =
       information * position - Eigen::Vector2d(placings.moment[0], placings.moment[1]);
   matrix(blocks_[i].diagonal).block<2, 2>(kX, kX) += information;
   vector(blocks_[i].gradient).segment<2>(kX) += gradient;
+  if (placings_carry_offset_) {
+    matrix(blocks_[i].diagonal).block<2, 2>(kBiasX, kBiasX) += information;
+    matrix(blocks_[i].diagonal).block<2, 2>(kX, kBiasX) += information;
+    matrix(blocks_[i].diagonal).block<2, 2>(kBiasX, kX) += information;
+    vector(blocks_[i].gradient).segment<2>(kBiasX) += gradient;
+  }
+}
+
+void PathSmoother::accumulate_first_hold() noexcept {
+  // The first keyframe's pose = where it was drawn.
+  const Keyframe& first = keyframes_[0];
+  const double residual[3] = {first.state[kX] - first.drawn.x_m, first.state[kY] - first.drawn.y_m,
+                              wrap_angle(first.state[kYaw] - first.drawn.yaw_rad)};
+  for (const int axis : {kX, kY, kYaw}) {
+    const double information = first_information_[axis == kYaw ? 1 : 0];
+    matrix(blocks_[0].diagonal)(axis, axis) += information;
+    vector(blocks_[0].gradient)(axis) += information * residual[axis];
+  }
 }
 
 void PathSmoother::accumulate_fix(std::size_t i, const FixMean& fixes, bool slow_error) noexcept {
@@ -527,6 +567,9 @@ void PathSmoother::solve() noexcept {
     for (std::size_t i = 0; i < count_; ++i) {
       blocks_[i] = Blocks{};
       matrix(blocks_[i].diagonal).diagonal().array() += kDamping;
+    }
+    if (holds_first()) {
+      accumulate_first_hold();
     }
     for (std::size_t i = 0; i < count_; ++i) {
       accumulate_fix(i);

@@ -49,6 +49,10 @@ std::string validate(const PriorMapConfig& config) {
     return "prior_map: update spacings must be positive, the motion's and start's sigmas and "
            "start_after_m not negative";
   }
+  if (!(config.frame_sigma_m >= 0.0) || !std::isfinite(config.frame_sigma_m) ||
+      !(config.frame_time_s > 0.0)) {
+    return "prior_map: frame_sigma_m must not be negative and frame_time_s must be positive";
+  }
   if (!(config.placing_gate_m > 0.0) || config.restart_after < 1 || config.lost_after < 1) {
     return "prior_map: placing_gate_m must be positive, restart_after and lost_after at least 1";
   }

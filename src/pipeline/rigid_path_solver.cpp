@@ -54,10 +54,30 @@ void RigidPathSolver::init(Arena& arena, const localize::PathSmootherConfig& con
   path_.init(arena, config);
   closer_.init(arena, loops);
   on_map_.init(arena, prior_map);
-  if (!starts_placed_) {
-    start_sigma_m_ = prior_map.start_sigma_m;
-    start_yaw_sigma_rad_ = prior_map.start_yaw_sigma_deg * kRadiansPerDegree;
+  start_sigma_m_ = prior_map.start_sigma_m;
+  start_yaw_sigma_rad_ = prior_map.start_yaw_sigma_deg * kRadiansPerDegree;
+}
+
+void RigidPathSolver::start_placed(double sigma_m, double yaw_sigma_rad) noexcept {
+  starts_placed_ = true;
+  path_.hold_first(sigma_m, yaw_sigma_rad);
+  start_sigma_m_ = sigma_m;
+  start_yaw_sigma_rad_ = yaw_sigma_rad;
+  const localize::PriorMapConfig& map = on_map_.config();
+  if (map.enabled && map.frame_sigma_m > 0.0) {
+    path_.carry_map_offset(map.frame_sigma_m, map.frame_time_s);
+    start_sigma_m_ = std::hypot(sigma_m, map.frame_sigma_m);
   }
+}
+
+localize::Pose2 RigidPathSolver::on_map(const localize::Pose2& in_path) const noexcept {
+  localize::Pose2 pose = path_.solved_pose(in_path);
+  if (path_.carries_map_offset()) {
+    const Eigen::Vector2d offset_m = path_.slow_error(in_path);
+    pose.x_m += offset_m.x();
+    pose.y_m += offset_m.y();
+  }
+  return pose;
 }
 
 void RigidPathSolver::localize_on_map(const localize::Pose2& in_path,
@@ -72,7 +92,7 @@ void RigidPathSolver::localize_on_map(const localize::Pose2& in_path,
     // frame, where the solved path puts the robot once it is placed.
     if (starts_placed_ ||
         (path_.counters().fixes > 0 && solved_travelled_m_ >= config.start_after_m)) {
-      on_map_.start(path_.solved_pose(in_path), in_path, start_sigma_m_, start_yaw_sigma_rad_);
+      on_map_.start(on_map(in_path), in_path, start_sigma_m_, start_yaw_sigma_rad_);
     }
     return;
   }
@@ -85,7 +105,7 @@ void RigidPathSolver::localize_on_map(const localize::Pose2& in_path,
   if (!placed_here) {
     return;
   }
-  const localize::Pose2 solved = path_.solved_pose(in_path);
+  const localize::Pose2 solved = on_map(in_path);
   const double gate_m = path_.counters().placings > 0
                             ? config.placing_gate_m
                             : std::max(config.placing_gate_m, 3.0 * start_sigma_m_);
@@ -102,7 +122,7 @@ void RigidPathSolver::localize_on_map(const localize::Pose2& in_path,
 }
 
 void RigidPathSolver::restart_map_localizer(const localize::Pose2& in_path) noexcept {
-  on_map_.start(path_.solved_pose(in_path), in_path,
+  on_map_.start(on_map(in_path), in_path,
                 std::max(start_sigma_m_, on_map_.config().placing_gate_m / 3.0),
                 start_yaw_sigma_rad_);
   refused_in_a_row_ = 0;

@@ -333,6 +333,32 @@ TEST(ReplayPriorMap, APriorMapPlacesARobotWithoutAReceiver) {
   EXPECT_LT(score["path"]["rms_m"].get<double>(), 0.1) << scored.out;
   const nlohmann::json& shift = score["path"]["alignment"]["shift_m"];
   EXPECT_LT(std::hypot(shift[0].get<double>(), shift[1].get<double>()), 0.1) << scored.out;
+  // The same footprints a metre off (1.0 m east, 0.7 m south), as an earlier run's receiver
+  // would have drawn them: the path carries the map's offset and keeps its start's frame.
+  nlohmann::json moved = nlohmann::json::parse(read_file(map));
+  constexpr double kEarthRadiusM = 6378137.0;
+  const double degrees_per_m = 180.0 / (std::numbers::pi * kEarthRadiusM);
+  const double latitude_rad = o["latitude_deg"].get<double>() * std::numbers::pi / 180.0;
+  for (nlohmann::json& feature : moved["features"]) {
+    for (nlohmann::json& ring : feature["geometry"]["coordinates"]) {
+      for (nlohmann::json& corner : ring) {
+        corner[0] = corner[0].get<double>() + 1.0 * degrees_per_m / std::cos(latitude_rad);
+        corner[1] = corner[1].get<double>() - 0.7 * degrees_per_m;
+      }
+    }
+  }
+  const fs::path moved_map = logs / "moved_footprints.geojson";
+  std::ofstream(moved_map) << moved.dump();
+  const Result offset = run_cli({"replay", logs.string(), "--out", out.string(), "--origin", origin,
+                                 "--start-pose", start, "--prior-map", moved_map.string()});
+  ASSERT_EQ(offset.status, kExitOk) << offset.err;
+  const Result offset_scored = run_cli({"score", out.string(), logs.string(), "--json"});
+  ASSERT_EQ(offset_scored.status, kExitOk) << offset_scored.err;
+  const nlohmann::json offset_score = nlohmann::json::parse(offset_scored.out);
+  EXPECT_LT(offset_score["path"]["rms_m"].get<double>(), 0.15) << offset_scored.out;
+  const nlohmann::json& offset_shift = offset_score["path"]["alignment"]["shift_m"];
+  EXPECT_LT(std::hypot(offset_shift[0].get<double>(), offset_shift[1].get<double>()), 0.3)
+      << offset_scored.out;
   // A map needs the frame it is in, and must be a map: one line each.
   Result bad =
       run_cli({"replay", logs.string(), "--out", out.string(), "--prior-map", map.string()});

@@ -503,6 +503,71 @@ TEST(PathSmoother, TheOdometrysOwnStretchesTakeItsTurnErrors) {
   EXPECT_GT(all_matched, 3.0 * told);
 }
 
+// An L-shaped drive (60 m east, then 60 m north) started at a known pose, placed by a prior
+// map whose frame sits (1.0, -0.7) m off the start's, as an earlier run's receiver would have
+// put it: the first leg's walls pin the position across it (north), the second's across it
+// (east). The worst keyframe's distance from the truth, and the slow error at the end.
+struct PlacedDrive {
+  double worst_m = 0.0;
+  Eigen::Vector2d end_slow_error_m = Eigen::Vector2d::Zero();
+};
+
+PlacedDrive drive_placed_on_an_offset_map(bool carry_offset) {
+  const Eigen::Vector2d map_offset_m(1.0, -0.7);
+  SmootherFixture fixture;
+  PathSmoother& smoother = fixture.smoother;
+  smoother.hold_first(0.05, 0.005);
+  if (carry_offset) {
+    smoother.carry_map_offset(1.5, 300.0);
+  }
+  std::vector<Pose2> truths;
+  for (int i = 0; i <= 240; ++i) {
+    const bool east = i <= 120;
+    const double along_m = 0.5 * (east ? i : i - 120);
+    truths.push_back(Pose2{static_cast<TimestampNs>(i + 1) * 500'000'000, east ? along_m : 60.0,
+                           east ? 0.0 : along_m, east ? 0.0 : 0.5 * synthetic::kPi});
+  }
+  for (std::size_t i = 0; i < truths.size(); ++i) {
+    const Pose2& truth = truths[i];
+    smoother.note_dead_reckoning(0.0, 0.0);  // every scan matched, as on a mapper's path
+    if (i % 4 != 0 || i == 0) {
+      smoother.add(truth, std::nullopt);
+      continue;
+    }
+    const Eigen::Matrix2d information = i <= 120 ? Eigen::Vector2d(0.0, 100.0).asDiagonal()
+                                                 : Eigen::Vector2d(100.0, 0.0).asDiagonal();
+    smoother.place(truth, truth, Eigen::Vector2d(truth.x_m, truth.y_m) + map_offset_m, information);
+  }
+  for (int i = 0; i < 3; ++i) {
+    smoother.solve();
+  }
+  PlacedDrive result;
+  for (std::size_t k = 0; k < smoother.keyframe_count(); ++k) {
+    const Pose2 pose = smoother.pose(k);
+    const auto i = static_cast<std::size_t>(pose.stamp_ns / 500'000'000) - 1;
+    result.worst_m =
+        std::max(result.worst_m, std::hypot(pose.x_m - truths[i].x_m, pose.y_m - truths[i].y_m));
+  }
+  result.end_slow_error_m = smoother.slow_error(truths.back());
+  return result;
+}
+
+TEST(PathSmootherPlacings, AMapsOwnOffsetIsCarriedAndThePathKeepsItsStartsFrame) {
+  // Carried, the offset goes into the slow error and the path stays where its start and
+  // motion put it; placed as exact, the map pulls each leg across to its own frame and the
+  // path bends at the held start.
+  const PlacedDrive carried = drive_placed_on_an_offset_map(true);
+  const PlacedDrive exact = drive_placed_on_an_offset_map(false);
+  std::printf("worst keyframe %.3f m carried (slow error at the end %.2f, %.2f m), %.3f m not\n",
+              carried.worst_m, carried.end_slow_error_m.x(), carried.end_slow_error_m.y(),
+              exact.worst_m);
+  // The offset's own prior (1.5 m) and the matched motion's bend share the last tenths.
+  EXPECT_LT(carried.worst_m, 0.2);
+  EXPECT_NEAR(carried.end_slow_error_m.x(), 1.0, 0.2);
+  EXPECT_NEAR(carried.end_slow_error_m.y(), -0.7, 0.2);
+  EXPECT_GT(exact.worst_m, 1.0);
+}
+
 TEST(PathSmoother, BadConfigurationsAreNamed) {
   PathSmootherConfig config;
   EXPECT_EQ(validate(config), "");

@@ -121,12 +121,19 @@ TEST(MapperConfigFile, TheLoopClosureTableIsReadAndCheckedAndItsTypoRefused) {
 }
 
 TEST(MapperConfigFile, ThePriorMapTableIsReadButAMapTurnsItOn) {
-  const pipeline::MapperConfig c =
-      parse_mapper_config("[prior_map]\nparticles = 128\nhit_sigma_m = 0.3\nrestart_after = 3\n",
-                          "map.toml", papers_robot());
+  const pipeline::MapperConfig c = parse_mapper_config(
+      "[prior_map]\nparticles = 128\nhit_sigma_m = 0.3\nrestart_after = 3\n"
+      "frame_sigma_m = 0.0\nframe_time_s = 90.0\n",
+      "map.toml", papers_robot());
   EXPECT_EQ(c.prior_map.particles, 128u);
   EXPECT_EQ(c.prior_map.hit_sigma_m, 0.3);
   EXPECT_EQ(c.prior_map.restart_after, 3u);
+  EXPECT_EQ(c.prior_map.frame_sigma_m, 0.0) << "a survey's map: placings hold the path as they are";
+  EXPECT_EQ(c.prior_map.frame_time_s, 90.0);
+  EXPECT_NE(error_of("[prior_map]\nframe_time_s = 0.0\n", papers_robot()).find("frame_time_s"),
+            std::string::npos);
+  EXPECT_NE(error_of("[prior_map]\nframe_sigma_m = -1.0\n", papers_robot()).find("frame_sigma_m"),
+            std::string::npos);
   EXPECT_FALSE(c.prior_map.enabled) << "replay --prior-map turns it on";
   EXPECT_NE(error_of("[prior_map]\nparticles = 4\n", papers_robot()).find("particles"),
             std::string::npos);

@@ -168,6 +168,20 @@ class PathSmoother {
   // street), and no receiver's slow error.
   void place(const Pose2& odometry, const Pose2& drawn, const Eigen::Vector2d& position_m,
              const Eigen::Matrix2d& information) noexcept;
+  // The robot started at a known pose: the first keyframe is held where it was drawn, within
+  // these sigmas. Without it a path placed only by a prior map's walls is free to slide along
+  // a street whose walls pin one direction, or to turn about the stretch they pin.
+  void hold_first(double sigma_m, double yaw_sigma_rad) noexcept;
+  [[nodiscard]] bool holds_first() const noexcept { return first_information_[0] > 0.0; }
+  // A path held at its start and placed on a prior map: the map's own frame may sit off the
+  // start's (an earlier run's receiver put it there), so the placings share the slow-error
+  // states, which take the map's offset instead of a receiver's (this stationary sigma and
+  // time constant). Without it the placings bend the path between its start and the map.
+  void carry_map_offset(double sigma_m, double time_s) noexcept;
+  [[nodiscard]] bool carries_map_offset() const noexcept { return placings_carry_offset_; }
+  // The slow error's states at the keyframe nearest `odometry` (east, north): the receiver's
+  // or, carried, the prior map's offset.
+  [[nodiscard]] Eigen::Vector2d slow_error(const Pose2& odometry) const noexcept;
 
   // Of the motion from the last keyframe to the next one, this much (and this long) the
   // odometry carried alone (no scan was matched over it): it is weighed with the odometry's
@@ -299,6 +313,7 @@ class PathSmoother {
   void accumulate_fix(std::size_t i) noexcept;
   void accumulate_fix(std::size_t i, const FixMean& fixes, bool slow_error) noexcept;
   void accumulate_placings(std::size_t i) noexcept;
+  void accumulate_first_hold() noexcept;
   // How alike two ties are: the longer of the times between their earlier looks and between
   // their later looks (ties that close hold the same two stretches of path to each other), or
   // the most there is when their walls are not parallel (a corner's two walls hold the path
@@ -333,7 +348,9 @@ class PathSmoother {
   std::size_t closure_count_ = 0;
   double dead_reckoned_m_ = 0.0;  // noted since the last keyframe
   double dead_reckoned_s_ = 0.0;
-  bool noted_dead_reckoning_ = false;  // the caller tells matched motion from odometry's
+  bool noted_dead_reckoning_ = false;   // the caller tells matched motion from odometry's
+  double first_information_[2] = {};    // the first keyframe's hold: position, yaw (0: none)
+  bool placings_carry_offset_ = false;  // placings share the slow error (carry_map_offset())
   PathSmootherCounters counters_;
 };
 

@@ -53,6 +53,13 @@ struct PriorMapConfig {
   double start_after_m = 20.0;
   double start_sigma_m = 2.0;
   double start_yaw_sigma_deg = 3.0;
+  // How far the map's frame may sit off the start pose's, for a robot started at a known
+  // pose, and how slowly that offset changes along the route: an earlier run's receiver put
+  // its walls where that run's path was, a metre or two off. The placings then share a slow
+  // error of this sigma and time constant (PathSmoother::carry_map_offset), and the particles
+  // start this much wider. 0: the map is in the start pose's frame (a survey).
+  double frame_sigma_m = 1.5;
+  double frame_time_s = 300.0;
   // The placing handed to the path, every place_spacing_m of motion: the estimate, with the
   // information the walls its returns land on give (none along a bare street), in the
   // directions they pin down to within max_placing_sigma_m. Given when the estimate's returns

@@ -38,13 +38,9 @@ class RigidPathSolver final : public map::PlaneView {
     return localize::PathSmoother::arena_bytes(config) + localize::LoopCloser::arena_bytes(loops) +
            localize::MapLocalizer::arena_bytes(prior_map);
   }
-  // The robot started at a known pose, within these sigmas (no fix needed to place the
-  // path's start).
-  void start_placed(double sigma_m, double yaw_sigma_rad) noexcept {
-    starts_placed_ = true;
-    start_sigma_m_ = sigma_m;
-    start_yaw_sigma_rad_ = yaw_sigma_rad;
-  }
+  // The robot started at a known pose, within these sigmas: the path's start is held there
+  // (no fix needed to place it). After init.
+  void start_placed(double sigma_m, double yaw_sigma_rad) noexcept;
   // The prior map's walls, at start-up (prior_map enabled): empty when it worked, else why not.
   [[nodiscard]] std::string set_prior_map(std::span<const localize::MapWall> walls) {
     return on_map_.set_map(walls);
@@ -102,7 +98,8 @@ class RigidPathSolver final : public map::PlaneView {
   // Whether anything but the odometry says where the path lies: fixes, a prior map's
   // placings or loop closures.
   [[nodiscard]] bool placed() const noexcept {
-    return path_.counters().fixes > 0 || path_.counters().placings > 0 || path_.closure_count() > 0;
+    return path_.holds_first() || path_.counters().fixes > 0 || path_.counters().placings > 0 ||
+           path_.closure_count() > 0;
   }
   // The submap just finished matched against the earlier ones: its verified revisits into
   // the path.
@@ -117,6 +114,9 @@ class RigidPathSolver final : public map::PlaneView {
   // The map localizer at a matched scan: started once the path is placed, then its placings.
   void localize_on_map(const localize::Pose2& in_path, const localize::Pose2& drawn_at,
                        std::span<const Eigen::Vector2d> match_points_m) noexcept;
+  // The solved path's pose at `in_path` in the prior map's frame (its offset added when the
+  // path carries it).
+  [[nodiscard]] localize::Pose2 on_map(const localize::Pose2& in_path) const noexcept;
   // Its particles again around the solved path's pose at `in_path`.
   void restart_map_localizer(const localize::Pose2& in_path) noexcept;
 
