@@ -93,6 +93,8 @@ void PathSmoother::init(Arena& arena, const PathSmootherConfig& config) {
   count_ = 0;
   tie_count_ = 0;
   closure_count_ = 0;
+  first_information_[0] = first_information_[1] = 0.0;
+  placings_carry_offset_ = false;
   counters_ = {};
 }
 
