@@ -48,9 +48,10 @@ struct PriorMapConfig {
   double turn_sigma_deg = 0.1;
   double turn_sigma_deg_per_m = 0.1;
   // Where the particles start: around the solved path's pose by these sigmas, once it has
-  // fixes over start_after_m of motion (its heading known); or at once, for a robot that
-  // started at a known pose, by the localizer's start sigmas.
-  double start_after_m = 20.0;
+  // fixes over start_after_m of motion (its heading known to about a degree: the receiver's
+  // slow error across 100 m); or at once, for a robot that started at a known pose, by the
+  // localizer's start sigmas.
+  double start_after_m = 100.0;
   double start_sigma_m = 2.0;
   double start_yaw_sigma_deg = 3.0;
   // How far the map's frame may sit off the start pose's, for a robot started at a known
