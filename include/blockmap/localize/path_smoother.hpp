@@ -165,7 +165,8 @@ class PathSmoother {
            double fix_sigma_scale = 1.0, GpsCorrection correction = GpsCorrection::kNone) noexcept;
   // A keyframe at `odometry` whose position a prior map gave (MapLocalizer): position equals
   // `position_m` with `information` (east, north; per square metre: zero along a bare
-  // street), and no receiver's slow error.
+  // street), and no receiver's slow error (the map's offset instead, when carried:
+  // carry_map_offset()).
   void place(const Pose2& odometry, const Pose2& drawn, const Eigen::Vector2d& position_m,
              const Eigen::Matrix2d& information) noexcept;
   // The robot started at a known pose: the first keyframe is held where it was drawn, within
@@ -253,7 +254,7 @@ class PathSmoother {
     Pose2 drawn;                   // as given
     FixMean code_fixes;            // position + slow error = fix
     FixMean carrier_fixes;         // position = fix (RTK)
-    Placings placings;             // position = a prior map's placings
+    Placings placings;             // position (+ slow error, carried) = a prior map's placings
     double state[5] = {};          // x, y, yaw, bx, by as solved
     double dead_reckoned_m = 0.0;  // of the motion from the keyframe before: odometry alone
     double dead_reckoned_s = 0.0;
