@@ -15,6 +15,7 @@
 #include <Eigen/Core>
 
 #include "long_test.hpp"
+#include "own_arena.hpp"
 
 namespace blockmap::localize {
 namespace {
@@ -132,22 +133,14 @@ ScanMatchConfig street_config() {
   return config;
 }
 
-// A matcher on an arena of its own, sealed after init as the mapper seals its arena.
-struct OwnArena {
-  explicit OwnArena(const ScanMatchConfig& config) : arena(ScanMatcher::arena_bytes(config)) {
-    matcher.init(arena, config);
-    arena.seal();
-  }
-  Arena arena;
-  ScanMatcher matcher;
-};
+using OwnArena = testing::OnOwnArena<ScanMatcher>;
 
 TEST(ScanMatcher, MatchedPosesFollowTheStreetWhereTheOdometryDrifts) {
   BLOCKMAP_LONG_TEST();
   const std::vector<Segment> scene = street();
   const ScanMatchConfig config = street_config();
   OwnArena sealed(config);
-  ScanMatcher& matcher = sealed.matcher;
+  ScanMatcher& matcher = sealed.part;
   // The street runs east (x): across it is y. The odometry's distance is believed along the
   // way (ScanMatchConfig::prior_along_ratio), so along it the matched pose keeps most of the
   // odometry's 3 %; across it and in heading, where a wrong pose bends the walls, the grid
@@ -197,7 +190,7 @@ double heading_after_an_outage_rad(double bias_time_s, double& learnt_radps) {
   ScanMatchConfig config = street_config();
   config.yaw_rate_bias_time_s = bias_time_s;
   OwnArena sealed(config);
-  ScanMatcher& matcher = sealed.matcher;
+  ScanMatcher& matcher = sealed.part;
   constexpr int kMatchedScans = 75 * 30;
   constexpr int kScans = 75 * 40;
   Pose2 corrected;
@@ -240,7 +233,7 @@ TEST(ScanMatcher, TheAnchorLaysTheMatchedPathOntoTheFiltersPath) {
   ScanMatchConfig config = street_config();
   config.anchor_time_s = 1e6;  // every sample counts alike
   OwnArena sealed(config);
-  ScanMatcher& matcher = sealed.matcher;
+  ScanMatcher& matcher = sealed.part;
   constexpr int kScans = 75 * 30;
   Pose2 corrected;
   Pose2 truth;
@@ -267,7 +260,7 @@ TEST(ScanMatcher, RefusesWhatItCannotMatchAndForgetsWhatLeftTheGrid) {
   config.cells_across = 128;  // 12.8 m
   config.levels = 3;
   OwnArena sealed(config);
-  ScanMatcher& matcher = sealed.matcher;
+  ScanMatcher& matcher = sealed.part;
   const std::vector<Segment> scene = street();
   const Pose2 here = truth_at(0);
   const std::vector<Eigen::Vector3f> points = scan_drawn_at(scene, here, here, 0.8);
@@ -320,7 +313,7 @@ TEST(ScanMatcher, ForgetsWhatNoScanHasHitForAWhile) {
     ScanMatchConfig config = street_config();
     config.forget_after_m = forget_after_m;
     OwnArena sealed(config);
-    ScanMatcher& matcher = sealed.matcher;
+    ScanMatcher& matcher = sealed.part;
     constexpr int kScans = 600;  // 9.6 m east
     for (int scan = 0; scan <= kScans; ++scan) {
       const Pose2 truth = truth_at(scan);
