@@ -1,14 +1,27 @@
 #include "commands/prior_map_file.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <numbers>
 
 #include <nlohmann/json.hpp>
+
+#include "outputs/plane_json.hpp"
 
 namespace blockmap::cli {
 namespace {
 
 using Json = nlohmann::json;
+
+// A plane list's planes within 10 degrees of vertical, 1 m wide or more and seen well are
+// walls seen. A few hundred returns may be a stray piece 200 m off the route, which would
+// stretch the map's grid over nothing.
+constexpr double kMaxWallTiltDeg = 10.0;
+constexpr double kMinSeenWallM = 1.0;
+constexpr double kMinSeenReturns = 1000.0;
 
 // A position [longitude, latitude(, height)] in the local frame.
 Eigen::Vector2d local_of(const Json& position, const hal::LocalEnuFrame& frame) {
@@ -97,6 +110,34 @@ void add_buildings(const Json& document, std::vector<localize::MapWall>& walls) 
   }
 }
 
+// planes.json: the vertical planes a run saw (walls, and what stands in front of them: a
+// hedge, a fence), each its extent seen from above. They enclose nothing; a run's
+// footprints, given beside them, say what is solid.
+void add_planes_seen(const Json& document, std::vector<localize::MapWall>& walls) {
+  const double min_horizontal_normal = std::cos(kMaxWallTiltDeg * std::numbers::pi / 180.0);
+  for (const msg::PlanePatch& plane : planes_from_json(document)) {
+    const Eigen::Vector2d across = plane.normal.head<2>();
+    if (across.norm() < min_horizontal_normal || plane.support < kMinSeenReturns) {
+      continue;
+    }
+    const Eigen::Vector2d normal = across.normalized();
+    const Eigen::Vector2d along(-normal.y(), normal.x());
+    // Where the plane crosses its points' mean height: a tilted plane moves with height.
+    const double offset_m = (plane.d_m - plane.normal.z() * plane.centroid_m.z()) / across.norm();
+    const Eigen::Vector2d on_plane = normal * offset_m;
+    double first_m = std::numeric_limits<double>::infinity();
+    double last_m = -first_m;
+    for (std::size_t k = 0; k < plane.polygon_size; ++k) {
+      const double at_m = along.dot(plane.polygon_m[k].head<2>());
+      first_m = std::min(first_m, at_m);
+      last_m = std::max(last_m, at_m);
+    }
+    if (last_m - first_m >= kMinSeenWallM) {
+      walls.push_back({on_plane + along * first_m, on_plane + along * last_m, false});
+    }
+  }
+}
+
 }  // namespace
 
 std::vector<localize::MapWall> read_prior_map(const std::string& path,
@@ -110,12 +151,14 @@ std::vector<localize::MapWall> read_prior_map(const std::string& path,
   std::ifstream in(path);
   const Json document = Json::parse(in, nullptr, false);
   if (document.is_discarded() || !document.is_object()) {
-    error = path + " is not a JSON object (GeoJSON or buildings.json)";
+    error = path + " is not a JSON object (GeoJSON, buildings.json or planes.json)";
     return walls;
   }
   try {
     if (document.contains("buildings")) {
       add_buildings(document, walls);
+    } else if (document.contains("planes")) {
+      add_planes_seen(document, walls);
     } else {
       add_geojson(document, frame, walls);
     }

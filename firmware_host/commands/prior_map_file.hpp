@@ -2,8 +2,9 @@
 // map): building footprints as GeoJSON in WGS-84 (RFC 7946: Polygon, MultiPolygon,
 // LineString and MultiLineString geometries, in a FeatureCollection, a Feature or bare), such
 // as an earlier run's footprints.geojson or a GIS layer; or an earlier run's buildings.json
-// (docs/formats.md, buildings: its footprints, in the local frame of that run's origin).
-// Polygons' rings enclose solid ground (MapWall::encloses); lines are walls alone.
+// (docs/formats.md, buildings: its footprints, in the local frame of that run's origin); or an
+// earlier run's planes.json (its vertical planes seen from above, in that frame too).
+// Polygons' rings enclose solid ground (MapWall::encloses); lines and planes are walls alone.
 #pragma once
 
 #include <string>

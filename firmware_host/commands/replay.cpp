@@ -50,10 +50,11 @@ namespace fs = std::filesystem;
 
 struct ReplayOptions {
   std::string dir;
-  MappingOptions mapping;        // out, config, udp, budget
-  std::string origin;            // "LAT,LON,H"; empty: the first good fix
-  std::string start_pose;        // "X,Y,YAW_DEG" in the local frame: a robot without a receiver
-  std::string prior_map;         // GeoJSON or buildings.json: localize against it too
+  MappingOptions mapping;  // out, config, udp, budget
+  std::string origin;      // "LAT,LON,H"; empty: the first good fix
+  std::string start_pose;  // "X,Y,YAW_DEG" in the local frame: a robot without a receiver
+  // GeoJSON, buildings.json or planes.json, one or more: localize against their walls too
+  std::vector<std::string> prior_maps;
   std::string poses = "filter";  // or "truth": a simulated run's true poses (truth.json)
   std::uint64_t seed = 1;
   std::size_t particles = pipeline::MapperConfig{}.localizer.filter.particle_count;
@@ -251,24 +252,27 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
     config.localizer.start_pose = *start;
   }
   std::vector<localize::MapWall> prior_walls;
-  if (!options.prior_map.empty()) {
+  if (!options.prior_maps.empty()) {
     if (options.origin.empty() || !map_planes) {
       err << "blockmap: replay: --prior-map needs --origin (where the map lies on Earth) and "
              "--out\n";
       return kExitUsage;
     }
-    std::string problem;
-    prior_walls = read_prior_map(options.prior_map, *fixes->frame(), problem);
-    if (!problem.empty()) {
-      err << "blockmap: replay: --prior-map: " << problem << '\n';
-      return kExitUsage;
+    for (const std::string& path : options.prior_maps) {
+      std::string problem;
+      const std::vector<localize::MapWall> walls = read_prior_map(path, *fixes->frame(), problem);
+      if (!problem.empty()) {
+        err << "blockmap: replay: --prior-map: " << problem << '\n';
+        return kExitUsage;
+      }
+      prior_walls.insert(prior_walls.end(), walls.begin(), walls.end());
     }
     config.prior_map.enabled = true;
     config.prior_map.seed = options.seed;
   }
   std::vector<localize::Pose3> true_poses;
   if (options.poses == "truth") {
-    if (!map_planes || !options.prior_map.empty() || !options.start_pose.empty()) {
+    if (!map_planes || !options.prior_maps.empty() || !options.start_pose.empty()) {
       err << "blockmap: replay: --poses truth maps (--out) with the true poses alone: no "
              "--prior-map or --start-pose\n";
       return kExitUsage;
@@ -395,9 +399,10 @@ Command add_replay_command(CLI::App& app) {
                     "localize only: write trajectory.csv, read no laser log");
   command->add_option("--origin", options->origin,
                       "the local frame's origin as LAT,LON,HEIGHT (default: the first good fix)");
-  command->add_option("--prior-map", options->prior_map,
+  command->add_option("--prior-map", options->prior_maps,
                       "localize against this map too (Monte Carlo): footprints as GeoJSON in "
-                      "WGS-84, or an earlier run's buildings.json; needs --origin");
+                      "WGS-84, or an earlier run's buildings.json or planes.json (its walls "
+                      "seen); given more than once, their walls together; needs --origin");
   command->add_option("--start-pose", options->start_pose,
                       "X,Y,YAW_DEG: a robot without a receiver starts here in the local frame of "
                       "--origin (gps.nmea may then be missing)");

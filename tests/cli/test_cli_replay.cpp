@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -212,6 +213,25 @@ TEST_F(ReplayMapping, ADamagedLaserLogIsMappedUpToTheDamageAndReported) {
   fs::remove_all(out);
 }
 
+// A simulated run's origin (--origin) and first true pose (--start-pose), from its truth.json.
+struct TrueStart {
+  std::string origin;
+  std::string pose;
+};
+
+TrueStart true_start_of(const nlohmann::json& truth) {
+  const nlohmann::json& first = truth["trajectory"][0];
+  const nlohmann::json& o = truth["origin"];
+  char origin[96];
+  std::snprintf(origin, sizeof origin, "%.9f,%.9f,%.3f", o["latitude_deg"].get<double>(),
+                o["longitude_deg"].get<double>(), o["height_m"].get<double>());
+  char pose[96];
+  std::snprintf(pose, sizeof pose, "%.3f,%.3f,%.3f", first["x_m"].get<double>(),
+                first["y_m"].get<double>(),
+                first["yaw_rad"].get<double>() * 180.0 / std::numbers::pi);
+  return {origin, pose};
+}
+
 TEST_F(ReplayMapping, ARobotWithoutAReceiverStartsWhereItIsToldAndMaps) {
   // The same logs without gps.nmea: the filter starts at --start-pose (the truth's first
   // pose) and dead-reckons; the scans are matched and mapped all the same.
@@ -222,14 +242,9 @@ TEST_F(ReplayMapping, ARobotWithoutAReceiverStartsWhereItIsToldAndMaps) {
   const nlohmann::json truth = nlohmann::json::parse(read_file(logs / "truth.json"));
   const nlohmann::json& first = truth["trajectory"][0];
   const nlohmann::json& last = truth["trajectory"][truth["trajectory"].size() - 1];
-  const nlohmann::json& o = truth["origin"];
-  const std::string origin = std::to_string(o["latitude_deg"].get<double>()) + "," +
-                             std::to_string(o["longitude_deg"].get<double>()) + "," +
-                             std::to_string(o["height_m"].get<double>());
-  const std::string start =
-      std::to_string(first["x_m"].get<double>()) + "," +
-      std::to_string(first["y_m"].get<double>()) + "," +
-      std::to_string(first["yaw_rad"].get<double>() * 180.0 / std::numbers::pi);
+  const TrueStart true_start = true_start_of(truth);
+  const std::string& origin = true_start.origin;
+  const std::string& start = true_start.pose;
   const fs::path out = logs.string() + "_out";
   const Result result = run_cli({"replay", logs.string(), "--out", out.string(), "--particles",
                                  "500", "--origin", origin, "--start-pose", start});
@@ -304,15 +319,10 @@ TEST(ReplayPriorMap, APriorMapPlacesARobotWithoutAReceiver) {
   fs::copy(simulated, logs);
   fs::remove(logs / "gps.nmea");
   const nlohmann::json truth = nlohmann::json::parse(read_file(logs / "truth.json"));
-  const nlohmann::json& first = truth["trajectory"][0];
   const nlohmann::json& o = truth["origin"];
-  char origin[96];
-  std::snprintf(origin, sizeof origin, "%.9f,%.9f,%.3f", o["latitude_deg"].get<double>(),
-                o["longitude_deg"].get<double>(), o["height_m"].get<double>());
-  char start[96];
-  std::snprintf(start, sizeof start, "%.3f,%.3f,%.3f", first["x_m"].get<double>(),
-                first["y_m"].get<double>(),
-                first["yaw_rad"].get<double>() * 180.0 / std::numbers::pi);
+  const TrueStart true_start = true_start_of(truth);
+  const std::string& origin = true_start.origin;
+  const std::string& start = true_start.pose;
   const fs::path map = logs / "truth_footprints.geojson";
   ASSERT_TRUE(fs::exists(map));
   const fs::path out = logs.string() + "_out";
@@ -375,6 +385,84 @@ TEST(ReplayPriorMap, APriorMapPlacesARobotWithoutAReceiver) {
   EXPECT_NE(bad.err.find("holds no wall"), std::string::npos) << bad.err;
   EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << bad.err;
   fs::remove_all(logs);
+  fs::remove_all(out);
+}
+
+// The prior-map count a run's summary gives ("prior map: N walls").
+int prior_map_walls(const std::string& err) {
+  const std::size_t at = err.find("prior map: ");
+  return at == std::string::npos ? -1 : std::stoi(err.substr(at + 11));
+}
+
+TEST(ReplayPriorMap, AnEarlierRunsWallsSeenJoinItsFootprints) {
+  BLOCKMAP_LONG_TEST();
+  // An earlier run of the same minute of benning, mapped with its receiver, is the prior map:
+  // its footprints, and the vertical planes it saw (planes.json: a wall of 1 m or more, seen
+  // with a thousand returns or more). Replayed without the receiver from the true start.
+  std::string err;
+  const fs::path simulated =
+      testing::simulated_logs({"--world", "benning", "--seed", "1", "--duration-s", "60"}, err);
+  ASSERT_FALSE(simulated.empty()) << err;
+  const fs::path logs = scratch("replay_prior_walls");
+  fs::remove_all(logs);
+  fs::copy(simulated, logs);
+  const TrueStart start = true_start_of(nlohmann::json::parse(read_file(logs / "truth.json")));
+  const fs::path earlier = logs.string() + "_earlier";
+  Result result =
+      run_cli({"replay", logs.string(), "--out", earlier.string(), "--origin", start.origin});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  fs::remove(logs / "gps.nmea");
+  const nlohmann::json seen = nlohmann::json::parse(read_file(earlier / "planes.json"));
+  int walls_seen = 0;
+  for (const nlohmann::json& plane : seen["planes"]) {
+    const Eigen::Vector2d across(plane["normal"][0].get<double>(),
+                                 plane["normal"][1].get<double>());
+    const Eigen::Vector2d along = Eigen::Vector2d(-across.y(), across.x()).normalized();
+    double first_m = 1e9;
+    double last_m = -1e9;
+    for (const nlohmann::json& corner : plane["polygon"]) {
+      const double at_m =
+          along.dot(Eigen::Vector2d(corner[0].get<double>(), corner[1].get<double>()));
+      first_m = std::min(first_m, at_m);
+      last_m = std::max(last_m, at_m);
+    }
+    const bool vertical = across.norm() >= std::cos(10.0 * std::numbers::pi / 180.0);
+    const bool seen_well = plane["support"].get<double>() >= 1000.0 && last_m - first_m >= 1.0;
+    walls_seen += vertical && seen_well ? 1 : 0;
+  }
+  ASSERT_GT(walls_seen, 5);
+  const fs::path out = logs.string() + "_out";
+  result = run_cli({"replay", logs.string(), "--out", out.string(), "--origin", start.origin,
+                    "--start-pose", start.pose, "--prior-map",
+                    (earlier / "footprints.geojson").string()});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  const int footprint_walls = prior_map_walls(result.err);
+  result =
+      run_cli({"replay", logs.string(), "--out", out.string(), "--origin", start.origin,
+               "--start-pose", start.pose, "--prior-map", (earlier / "footprints.geojson").string(),
+               "--prior-map", (earlier / "planes.json").string()});
+  ASSERT_EQ(result.status, kExitOk) << result.err;
+  EXPECT_EQ(prior_map_walls(result.err), footprint_walls + walls_seen) << result.err;
+  const Result scored = run_cli({"score", out.string(), logs.string(), "--json"});
+  ASSERT_EQ(scored.status, kExitOk) << scored.err;
+  const nlohmann::json score = nlohmann::json::parse(scored.out);
+  std::printf("%d footprint walls and %d walls seen; path %.3f m, shift %s m\n", footprint_walls,
+              walls_seen, score["path"]["rms_m"].get<double>(),
+              score["path"]["alignment"]["shift_m"].dump().c_str());
+  EXPECT_LT(score["path"]["rms_m"].get<double>(), 0.15) << scored.out;
+  const nlohmann::json& shift = score["path"]["alignment"]["shift_m"];
+  EXPECT_LT(std::hypot(shift[0].get<double>(), shift[1].get<double>()), 0.3) << scored.out;
+  // A plane list with a mistake is refused with one line naming the entry.
+  std::ofstream(logs / "bad_planes.json")
+      << R"({"planes": [{"id": 1, "kind": "wall", "normal": [2, 0, 0], "d": 1, "polygon": []}]})";
+  result =
+      run_cli({"replay", logs.string(), "--out", out.string(), "--origin", start.origin,
+               "--start-pose", start.pose, "--prior-map", (logs / "bad_planes.json").string()});
+  EXPECT_EQ(result.status, kExitUsage);
+  EXPECT_NE(result.err.find("planes[0].normal"), std::string::npos) << result.err;
+  EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << result.err;
+  fs::remove_all(logs);
+  fs::remove_all(earlier);
   fs::remove_all(out);
 }
 
