@@ -289,11 +289,18 @@ void RigidPathSolver::tie_walls_to_earlier_passes(std::span<const msg::PlanePatc
                                                   const map::PlaneRegistry& registry,
                                                   TimestampNs stamp_ns) noexcept {
   const std::span<const msg::PlanePatch> finals = registry.final_planes();
+  // Where the path now puts what this pass draws, as the stream shows the final planes: by
+  // its latest keyframe's correction (as drawn without a view).
+  map::PlaneMove move_now;
+  if (registry.has_view() && path_.keyframe_count() > 0) {
+    const localize::PlanarCorrection latest = path_.correction(path_.keyframe_count() - 1);
+    move_now = {latest.yaw_rad, Eigen::Vector3d(latest.x_m, latest.y_m, 0.0)};
+  }
   for (const msg::PlanePatch& wall : detected) {
     if (wall.kind != msg::PlaneKind::kWall || wall.normal.head<2>().norm() < 0.5) {
       continue;
     }
-    const std::size_t best = earlier_drawing_of(wall, registry, stamp_ns);
+    const std::size_t best = earlier_drawing_of(wall, move_now, registry, stamp_ns);
     if (best == finals.size()) {
       continue;
     }
@@ -322,9 +329,13 @@ void RigidPathSolver::tie_walls_to_earlier_passes(std::span<const msg::PlanePatc
   }
 }
 
-std::size_t RigidPathSolver::earlier_drawing_of(const msg::PlanePatch& wall,
+std::size_t RigidPathSolver::earlier_drawing_of(const msg::PlanePatch& drawn_wall,
+                                                const map::PlaneMove& wall_move,
                                                 const map::PlaneRegistry& registry,
                                                 TimestampNs stamp_ns) noexcept {
+  // Compared where the path puts them: each pass's drawing, moved as the stream shows it. As
+  // drawn, a loop's end lies as far off its start as the lasers drifted round it (the real
+  // UAL loop: 5 degrees, 2.3 m at a wall near its start).
   // A pass's poses put its walls off by the receiver's slow error of that time, up to a
   // couple of metres, and another pass's by another: the same wall drawn twice lies up to
   // kGateM apart, parallel to within kGateAngleDeg. It must overlap the earlier drawing by
@@ -338,26 +349,39 @@ std::size_t RigidPathSolver::earlier_drawing_of(const msg::PlanePatch& wall,
   constexpr TimestampNs kOtherPassNs = 2 * map::SeenSpans::kJoinGapNs;
   const double cos_gate_angle = std::cos(radians_from_degrees(kGateAngleDeg));
   const std::span<const msg::PlanePatch> finals = registry.final_planes();
+  msg::PlanePatch wall = drawn_wall;
+  map::move_plane(wall, wall_move);
   const Eigen::Vector2d normal = wall.normal.head<2>().normalized();
   const Eigen::Vector2d along(-normal.y(), normal.x());
   const WallExtent extent = wall_extent(wall, along);
   std::size_t best = finals.size();
   double best_offset_m = kGateM;
   for (std::size_t j = 0; j < finals.size(); ++j) {
-    const msg::PlanePatch& earlier = finals[j];
     const map::SeenSpans& seen = registry.seen_spans(j);
-    if (earlier.kind != msg::PlaneKind::kWall || seen.count == 0 ||
-        stamp_ns - seen.last_ns() < kOtherPassNs ||
-        std::abs(earlier.normal.head<2>().normalized().dot(normal)) < cos_gate_angle) {
+    if (finals[j].kind != msg::PlaneKind::kWall || seen.count == 0 ||
+        stamp_ns - seen.last_ns() < kOtherPassNs) {
       continue;
     }
+    const map::PlaneMove& shown = registry.final_shown(j);
+    const Eigen::Vector2d earlier_normal =
+        Eigen::Rotation2Dd(shown.yaw_rad) * finals[j].normal.head<2>().normalized();
+    if (std::abs(earlier_normal.dot(normal)) < cos_gate_angle) {
+      continue;
+    }
+    msg::PlanePatch earlier = finals[j];
+    map::move_plane(earlier, shown);
     const double offset_m = std::abs(earlier.normal.dot(wall.centroid_m) - earlier.d_m);
     if (offset_m >= best_offset_m) {
       continue;
     }
     const WallExtent before = wall_extent(earlier, along);
+    // A level laser alone draws its walls a hand high: half of the lower drawing will do.
+    const double min_height_overlap_m =
+        std::min(kMinHeightOverlapM,
+                 0.5 * std::min(extent.high_m - extent.low_m, before.high_m - before.low_m));
     if (overlap_m(extent.from_m, extent.to_m, before.from_m, before.to_m) < kMinOverlapM ||
-        overlap_m(extent.low_m, extent.high_m, before.low_m, before.high_m) < kMinHeightOverlapM) {
+        overlap_m(extent.low_m, extent.high_m, before.low_m, before.high_m) <
+            min_height_overlap_m) {
       continue;
     }
     best = j;

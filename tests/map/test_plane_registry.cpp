@@ -14,6 +14,7 @@
 
 #include "blockmap/core/arena.hpp"
 #include "blockmap/map/plane_registry.hpp"
+#include "blockmap/pipeline/rigid_path_solver.hpp"
 #include "blockmap/planes/voxel_grid.hpp"
 
 namespace blockmap::map {
@@ -730,6 +731,49 @@ TEST(PlaneRegistry, RefusesAnUnusableConfiguration) {
   config = PlaneRegistryConfig{};
   config.band_m = 0.5;  // above max_band_m
   EXPECT_NE(validate(config), "");
+}
+
+// The rigid path pairs a wall of this pass with an earlier pass's drawing of it where the path
+// puts both: the earlier as the stream shows it (the view's move), this one by this pass's
+// correction. Drawn, a loop's end lies as far off its start as the lasers drifted round it.
+// A level laser's traces, 0.2 m high, pair too.
+class TurnedByTwelve final : public PlaneView {
+ public:
+  [[nodiscard]] PlaneMove move_of(const msg::PlanePatch& /*plane*/,
+                                  const SeenSpans& /*seen*/) const noexcept override {
+    return kMove;
+  }
+  static constexpr double kYawRad = 12.0 * std::numbers::pi / 180.0;
+  inline static const PlaneMove kMove{kYawRad, Eigen::Vector3d(1.0, -2.0, 0.0)};
+};
+
+TEST(RigidPathPairing, AWallIsPairedWithItsEarlierDrawingWhereThePathPutsBoth) {
+  Registry r;
+  TurnedByTwelve view;
+  r.registry.set_view(&view, 0.05);
+  static_cast<void>(r.detect({trace({0.0, 10.0}, {20.0, 10.0})}));
+  r.registry.begin_update();
+  r.registry.finalize_all();
+  ASSERT_EQ(r.registry.final_planes().size(), 1u);
+  // This pass's frame has drifted: its correction is 6 degrees and a shift, so the same wall
+  // is drawn where that correction's inverse takes its place on the path.
+  const PlaneMove this_pass{6.0 * std::numbers::pi / 180.0, Eigen::Vector3d(-0.5, 0.7, 0.0)};
+  msg::PlanePatch drawn = trace({0.0, 10.0}, {20.0, 10.0}).plane;
+  move_plane(drawn, TurnedByTwelve::kMove);
+  move_plane(drawn, PlaneMove{-this_pass.yaw_rad, Eigen::Vector3d::Zero()});
+  const Eigen::Vector3d unshift =
+      Eigen::AngleAxisd(-this_pass.yaw_rad, Eigen::Vector3d::UnitZ()) * -this_pass.shift_m;
+  move_plane(drawn, PlaneMove{0.0, unshift});
+  const TimestampNs later_ns = 100 * kNanosecondsPerSecond;
+  EXPECT_EQ(pipeline::RigidPathSolver::earlier_drawing_of(drawn, this_pass, r.registry, later_ns),
+            0u);
+  // This pass as drawn lies 6 degrees off the earlier one where the path puts it: no pair.
+  EXPECT_EQ(pipeline::RigidPathSolver::earlier_drawing_of(drawn, PlaneMove{}, r.registry, later_ns),
+            1u);
+  // Nor within this pass's own minute.
+  EXPECT_EQ(pipeline::RigidPathSolver::earlier_drawing_of(drawn, this_pass, r.registry,
+                                                          5 * kNanosecondsPerSecond),
+            1u);
 }
 
 }  // namespace

@@ -225,6 +225,7 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
     view_ = view;
     view_change_m_ = change_m;
   }
+  [[nodiscard]] bool has_view() const noexcept { return view_ != nullptr; }
   // The view moved: each plane that the stream shows more than the view's change_m off
   // where the view now puts it (at any vertex) is reported there again, a live one as
   // changed, a final one as finalized. At most `max_changes` an update, so that one fits a
@@ -244,6 +245,10 @@ class PlaneRegistry final : public VoxelWindow::EvictionSink {
   // The final planes (in no particular order).
   [[nodiscard]] std::span<const msg::PlanePatch> final_planes() const noexcept {
     return final_.first(final_count_);
+  }
+  // How the stream shows final plane `index` (the view's move when it was last reported).
+  [[nodiscard]] const PlaneMove& final_shown(std::size_t index) const noexcept {
+    return final_shown_[index];
   }
   // When final plane `index` (of final_planes()) was seen; no spans for a restored plane
   // (a snapshot keeps none) until it is seen again.

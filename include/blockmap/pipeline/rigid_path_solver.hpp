@@ -73,8 +73,10 @@ class RigidPathSolver final : public map::PlaneView {
   void tie_walls_to_earlier_passes(std::span<const msg::PlanePatch> detected,
                                    const map::PlaneRegistry& registry,
                                    TimestampNs stamp_ns) noexcept;
-  // The final wall that `wall` is an earlier pass's drawing of, or final_planes().size().
-  [[nodiscard]] static std::size_t earlier_drawing_of(const msg::PlanePatch& wall,
+  // The final wall that `drawn_wall` (which the path moves by `wall_move`) is an earlier
+  // pass's drawing of, or final_planes().size().
+  [[nodiscard]] static std::size_t earlier_drawing_of(const msg::PlanePatch& drawn_wall,
+                                                      const map::PlaneMove& wall_move,
                                                       const map::PlaneRegistry& registry,
                                                       TimestampNs stamp_ns) noexcept;
   // The later look's keyframe: one of this pass, the last half minute.
