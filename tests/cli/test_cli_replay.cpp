@@ -305,18 +305,29 @@ TEST_F(ReplayMapping, TruePosesDrawTheSameLogsWhereTheRobotWas) {
   fs::remove_all(out);
 }
 
+// A minute of benning, seed 1 (simulated once, cached), copied into the scratch folder `name`;
+// empty when it could not be simulated.
+fs::path benning_minute(const std::string& name) {
+  std::string err;
+  const fs::path simulated =
+      testing::simulated_logs({"--world", "benning", "--seed", "1", "--duration-s", "60"}, err);
+  if (simulated.empty()) {
+    ADD_FAILURE() << err;
+    return {};
+  }
+  const fs::path logs = scratch(name);
+  fs::remove_all(logs);
+  fs::copy(simulated, logs);
+  return logs;
+}
+
 TEST(ReplayPriorMap, APriorMapPlacesARobotWithoutAReceiver) {
   BLOCKMAP_LONG_TEST();
   // A minute of benning without gps.nmea, started at the truth's first pose, and the world's
   // footprints (simulate's truth_footprints.geojson, WGS-84) as the prior map: the particles
   // weigh the level scans against it, and its placings hold the rigid path.
-  std::string err;
-  const fs::path simulated =
-      testing::simulated_logs({"--world", "benning", "--seed", "1", "--duration-s", "60"}, err);
-  ASSERT_FALSE(simulated.empty()) << err;
-  const fs::path logs = scratch("replay_prior_map");
-  fs::remove_all(logs);
-  fs::copy(simulated, logs);
+  const fs::path logs = benning_minute("replay_prior_map");
+  ASSERT_FALSE(logs.empty());
   fs::remove(logs / "gps.nmea");
   const nlohmann::json truth = nlohmann::json::parse(read_file(logs / "truth.json"));
   const nlohmann::json& o = truth["origin"];
@@ -399,13 +410,8 @@ TEST(ReplayPriorMap, AnEarlierRunsWallsSeenJoinItsFootprints) {
   // An earlier run of the same minute of benning, mapped with its receiver, is the prior map:
   // its footprints, and the vertical planes it saw (planes.json: a wall of 1 m or more, seen
   // with a thousand returns or more). Replayed without the receiver from the true start.
-  std::string err;
-  const fs::path simulated =
-      testing::simulated_logs({"--world", "benning", "--seed", "1", "--duration-s", "60"}, err);
-  ASSERT_FALSE(simulated.empty()) << err;
-  const fs::path logs = scratch("replay_prior_walls");
-  fs::remove_all(logs);
-  fs::copy(simulated, logs);
+  const fs::path logs = benning_minute("replay_prior_walls");
+  ASSERT_FALSE(logs.empty());
   const TrueStart start = true_start_of(nlohmann::json::parse(read_file(logs / "truth.json")));
   const fs::path earlier = logs.string() + "_earlier";
   Result result =
