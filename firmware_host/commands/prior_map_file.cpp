@@ -17,8 +17,8 @@ namespace {
 using Json = nlohmann::json;
 
 // A plane list's planes within 10 degrees of vertical, 1 m wide or more and seen well are
-// walls seen. A few hundred returns may be a stray piece 200 m off the route, which would
-// stretch the map's grid over nothing.
+// walls seen. A stray piece of a few hundred returns far off the route would stretch the
+// map's grid over nothing.
 constexpr double kMaxWallTiltDeg = 10.0;
 constexpr double kMinSeenWallM = 1.0;
 constexpr double kMinSeenReturns = 1000.0;

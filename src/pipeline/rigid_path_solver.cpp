@@ -334,8 +334,7 @@ std::size_t RigidPathSolver::earlier_drawing_of(const msg::PlanePatch& drawn_wal
                                                 const map::PlaneRegistry& registry,
                                                 TimestampNs stamp_ns) noexcept {
   // Compared where the path puts them: each pass's drawing, moved as the stream shows it. As
-  // drawn, a loop's end lies as far off its start as the lasers drifted round it (the real
-  // UAL loop: 5 degrees, 2.3 m at a wall near its start).
+  // drawn, a loop's end lies as far off its start as the lasers drifted round it.
   // A pass's poses put its walls off by the receiver's slow error of that time, up to a
   // couple of metres, and another pass's by another: the same wall drawn twice lies up to
   // kGateM apart, parallel to within kGateAngleDeg. It must overlap the earlier drawing by

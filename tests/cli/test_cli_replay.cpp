@@ -315,7 +315,7 @@ fs::path benning_minute(const std::string& name) {
     ADD_FAILURE() << err;
     return {};
   }
-  const fs::path logs = scratch(name);
+  fs::path logs = scratch(name);
   fs::remove_all(logs);
   fs::copy(simulated, logs);
   return logs;
