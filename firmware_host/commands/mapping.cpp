@@ -205,11 +205,13 @@ void MappingSession::report(std::ostream& err, double data_s) const {
       std::snprintf(
           text, sizeof text,
           "loop closing: %llu submaps (%zu kept, %llu thinnings), %llu matched against "
-          "an earlier one, %llu closures (%llu with too few cells on it, %llu leaving "
-          "the window), %zu in the path (%llu dropped when full)\n",
+          "an earlier one, %llu closures (%llu by the wider search; %llu with too few cells on "
+          "it, %llu leaving the window), %zu in the path (%llu dropped when full)\n",
           static_cast<unsigned long long>(l.submaps), closer.submap_count(),
           static_cast<unsigned long long>(l.thinnings), static_cast<unsigned long long>(l.searches),
-          static_cast<unsigned long long>(l.closures), static_cast<unsigned long long>(l.low_score),
+          static_cast<unsigned long long>(l.closures),
+          static_cast<unsigned long long>(l.wide_closures),
+          static_cast<unsigned long long>(l.low_score),
           static_cast<unsigned long long>(l.off_window), mapper_.rigid_path().closure_count(),
           static_cast<unsigned long long>(p.closures_dropped));
       err << text;

@@ -71,6 +71,12 @@ std::string validate(const LoopClosureConfig& config) {
     return "loop_closure: search_radius_per_m and search_yaw_deg_per_m must not be negative, "
            "max_search_radius_m and max_search_yaw_deg (at most 45) not below the fixed ones";
   }
+  if (!(config.wide_search_radius_m >= 0.0) || !(config.wide_search_yaw_deg >= 0.0) ||
+      config.wide_search_yaw_deg > 45.0 ||
+      !(config.wide_min_score > 0.0 && config.wide_min_score <= 1.0)) {
+    return "loop_closure: wide_search_radius_m must not be negative, wide_search_yaw_deg 0 to "
+           "45 and wide_min_score in (0, 1]";
+  }
   if (!(config.min_score > 0.0 && config.min_score <= 1.0) || !(config.point_sigma_m > 0.0) ||
       !(config.floor_sigma_m > 0.0) || !(config.floor_sigma_deg > 0.0)) {
     return "loop_closure: min_score must be in (0, 1], point_sigma_m, floor_sigma_m and "
@@ -319,6 +325,12 @@ std::size_t LoopCloser::find_closures(
         window_between(target, query, path.counters().fixes + path.counters().placings > 0);
     if (match(target, query, nearest[k].guess, window, found[count])) {
       ++count;
+      continue;
+    }
+    const Window wide = widened(window);
+    if (wide.radius_m > 0.0 && match(target, query, nearest[k].guess, wide, found[count])) {
+      ++count;
+      ++counters_.wide_closures;
     }
   }
   return count;
@@ -380,13 +392,32 @@ LoopCloser::Window LoopCloser::window_between(const Submap& target, const Submap
                              config_.max_search_radius_m);
   window.yaw_rad = radians_from_degrees(std::min(
       config_.search_yaw_deg + config_.search_yaw_deg_per_m * apart_m, config_.max_search_yaw_deg));
+  window.level = level_spanning(window.radius_m);
+  window.min_score = config_.min_score;
+  return window;
+}
+
+LoopCloser::Window LoopCloser::widened(const Window& window) const noexcept {
+  Window wide;
+  const double yaw_rad = radians_from_degrees(config_.wide_search_yaw_deg);
+  if (config_.wide_search_radius_m <= window.radius_m && yaw_rad <= window.yaw_rad) {
+    return wide;
+  }
+  wide.radius_m = std::max(config_.wide_search_radius_m, window.radius_m);
+  wide.yaw_rad = std::max(yaw_rad, window.yaw_rad);
+  wide.level = level_spanning(wide.radius_m);
+  wide.min_score = std::max(config_.wide_min_score, window.min_score);
+  return wide;
+}
+
+std::size_t LoopCloser::level_spanning(double radius_m) const noexcept {
   // The search runs on the finest level that spans the window in kMaxShifts half-cells
   // either way: a wider window on a coarser level, at about the same cost.
-  while (window.level + 1 < levels_.size() &&
-         window.radius_m > kMaxShifts * 0.5 * levels_[window.level].cell_m) {
-    ++window.level;
+  std::size_t level = 0;
+  while (level + 1 < levels_.size() && radius_m > kMaxShifts * 0.5 * levels_[level].cell_m) {
+    ++level;
   }
-  return window;
+  return level;
 }
 
 Eigen::Vector3d LoopCloser::coarse_search(const Eigen::Vector3d& guess,
@@ -506,7 +537,7 @@ bool LoopCloser::match(const Submap& target, const Submap& query, const Eigen::V
     found = searched;
   }
   // 4. Verified: mostly on the earlier submap's surfaces, and inside the window.
-  if (found.score < config_.min_score) {
+  if (found.score < window.min_score) {
     ++counters_.low_score;
     return false;
   }

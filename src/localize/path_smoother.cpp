@@ -52,6 +52,11 @@ std::string validate(const PathSmootherConfig& config) {
       !positive(config.matched_yaw_sigma_per_sqrt_m)) {
     return "path smoother: keyframe_spacing_m and the motion's sigmas must be positive";
   }
+  if (!(config.unlearnt_yaw_rate_bias_sigma_radps >= 0.0) ||
+      !positive(config.unlearnt_yaw_rate_bias_time_s)) {
+    return "path smoother: unlearnt_yaw_rate_bias_sigma_radps must not be negative and "
+           "unlearnt_yaw_rate_bias_time_s must be positive";
+  }
   if (!positive(config.bias_sigma_m) || !positive(config.bias_time_s) ||
       !positive(config.fix_sigma_m) || !positive(config.rtk_fixed_sigma_m) ||
       !positive(config.rtk_float_sigma_m)) {
@@ -226,8 +231,10 @@ void PathSmoother::append(const Pose2& odometry, const Pose2& drawn) noexcept {
   next.drawn = drawn;
   next.dead_reckoned_m = dead_reckoned_m_;
   next.dead_reckoned_s = dead_reckoned_s_;
+  next.unlearnt_turn_variance_rad2 = unlearnt_turn_variance_rad2_;
   dead_reckoned_m_ = 0.0;
   dead_reckoned_s_ = 0.0;
+  unlearnt_turn_variance_rad2_ = 0.0;
   if (count_ == 0) {
     // Where the caller drew it: the odometry's frame says nothing about the local frame.
     next.state[kX] = drawn.x_m;
@@ -265,6 +272,7 @@ void PathSmoother::thin() noexcept {
     const Keyframe& from = keyframes_[i];
     keyframes_[i + 1].dead_reckoned_m += from.dead_reckoned_m;  // now from `into` on
     keyframes_[i + 1].dead_reckoned_s += from.dead_reckoned_s;
+    keyframes_[i + 1].unlearnt_turn_variance_rad2 += from.unlearnt_turn_variance_rad2;
     const double dx_m = from.state[kX] - into.state[kX];
     const double dy_m = from.state[kY] - into.state[kY];
     for (const auto member : {&Keyframe::code_fixes, &Keyframe::carrier_fixes}) {
@@ -277,6 +285,19 @@ void PathSmoother::thin() noexcept {
   }
   count_ = kept;
   ++counters_.thinnings;
+}
+
+void PathSmoother::note_dead_reckoning(double distance_m, double duration_s,
+                                       double matched_s) noexcept {
+  noted_dead_reckoning_ = true;
+  dead_reckoned_m_ += distance_m;
+  dead_reckoned_s_ += duration_s;
+  matched_s_ += matched_s;
+  if (matched_s_ <= 0.0) {
+    const double sigma_radps = config_.unlearnt_yaw_rate_bias_sigma_radps;
+    unlearnt_turn_variance_rad2_ +=
+        sigma_radps * sigma_radps * config_.unlearnt_yaw_rate_bias_time_s * duration_s;
+  }
 }
 
 void PathSmoother::accumulate_motion(std::size_t i) noexcept {
@@ -305,7 +326,8 @@ void PathSmoother::accumulate_motion(std::size_t i) noexcept {
              squared(config_.matched_across_sigma_per_sqrt_m) * matched_m + kMinMotionVarianceM2),
       1.0 / (squared(config_.yaw_sigma_per_sqrt_m) * alone_m +
              squared(config_.matched_yaw_sigma_per_sqrt_m) * matched_m +
-             squared(config_.yaw_sigma_per_sqrt_s) * alone_s + kMinTurnVarianceRad2));
+             squared(config_.yaw_sigma_per_sqrt_s) * alone_s + b.unlearnt_turn_variance_rad2 +
+             kMinTurnVarianceRad2));
   Jacobian3 ja = Jacobian3::Zero();
   Jacobian3 jb = Jacobian3::Zero();
   ja(0, kX) = -c;

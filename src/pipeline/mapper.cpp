@@ -19,7 +19,7 @@ void Mapper::init(Arena& arena, const MapperConfig& config) {
   scan_correction_.init(arena, matcher_config(config), level);
   path_on_ = solves_the_path(config);
   if (path_on_) {
-    path_.init(arena, config.path, config.loop_closure, config.prior_map);
+    path_.init(arena, path_config(config), config.loop_closure, config.prior_map);
     if (config.localizer.start_at_known_pose) {
       path_.start_placed(config.localizer.start_position_sigma_m,
                          config.localizer.start_yaw_sigma_rad);
@@ -54,9 +54,9 @@ std::size_t Mapper::arena_bytes(const MapperConfig& config) noexcept {
   constexpr std::size_t kSlack = 64;
   return ScanPoses::arena_bytes(config.pose_source, config.localizer, config.max_external_poses) +
          ScanCorrection::arena_bytes(matcher_config(config)) +
-         (solves_the_path(config)
-              ? RigidPathSolver::arena_bytes(config.path, config.loop_closure, config.prior_map)
-              : 0) +
+         (solves_the_path(config) ? RigidPathSolver::arena_bytes(
+                                        path_config(config), config.loop_closure, config.prior_map)
+                                  : 0) +
          map::VoxelWindow::arena_bytes(window_config(config)) +
          planes::PlaneDetector::arena_budget_bytes(detector_config(config)) +
          map::PlaneRegistry::arena_bytes(registry_config(config)) +

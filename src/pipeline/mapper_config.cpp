@@ -84,6 +84,16 @@ localize::ScanMatchConfig matcher_config(const MapperConfig& config) noexcept {
   return matching;
 }
 
+localize::PathSmootherConfig path_config(const MapperConfig& config) noexcept {
+  localize::PathSmootherConfig path = config.path;
+  // Until the matcher has matched a scan, the turn the odometry carries alone holds the
+  // gyroscope's bias as the filter starts with it (docs/localize.md, The gyroscope's bias
+  // before a scan is matched).
+  path.unlearnt_yaw_rate_bias_sigma_radps =
+      config.localizer.filter.initial_yaw_rate_bias_sigma_radps;
+  return path;
+}
+
 map::PlaneRegistryConfig registry_config(const MapperConfig& config) noexcept {
   map::PlaneRegistryConfig registry = config.registry;
   registry.max_detected_planes = config.planes.max_planes;

@@ -151,9 +151,10 @@ void RigidPathSolver::add_matched_scan(TimestampNs stamp_ns, const localize::Pos
   if (have_last_) {
     // Noted for every scan, so that the path knows its odometry is matched scans.
     const bool alone = !scan_matched;
+    const double since_last_s = seconds_from_ns(stamp_ns - last_pose_.stamp_ns);
     path_.note_dead_reckoning(
         alone ? std::hypot(in_path.x_m - last_pose_.x_m, in_path.y_m - last_pose_.y_m) : 0.0,
-        alone ? seconds_from_ns(stamp_ns - last_pose_.stamp_ns) : 0.0);
+        alone ? since_last_s : 0.0, alone ? 0.0 : since_last_s);
   }
   if (have_last_) {
     travelled_m_ += std::hypot(in_path.x_m - last_pose_.x_m, in_path.y_m - last_pose_.y_m);

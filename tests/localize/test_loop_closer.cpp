@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <optional>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -53,9 +54,17 @@ struct CloserAndPath {
   PathSmoother path;
 };
 
+// How the way back's odometry is off, and whether the path holds fixes (which fix the
+// search window's size: the receiver bounds how far apart two passes are drawn).
+struct WayBack {
+  double turn_deg = 1.0;
+  Eigen::Vector2d about_m = Eigen::Vector2d(kStreetM, 0.0);
+  bool fixes = false;
+};
+
 // Drives out and back, the way back seeing `back_walls`, and collects every closure.
 StreetDrive drive_out_and_back(const LoopClosureConfig& config,
-                               const std::vector<Facade>& back_walls) {
+                               const std::vector<Facade>& back_walls, const WayBack& back = {}) {
   const std::vector<Facade> out_walls = street_of(8.0);
   CloserAndPath run(config);
   LoopCloser& closer = run.closer;
@@ -64,9 +73,11 @@ StreetDrive drive_out_and_back(const LoopClosureConfig& config,
   std::array<LoopClosure, kMaxClosureCandidates> found{};
   for (double s = 0.0; s <= 2.0 * kStreetM; s += kScanStepM) {
     const Pose2 truth = street_truth_at(s);
-    const Pose2 odometry = drifted_back(truth);
+    const Pose2 odometry = drifted_back(truth, back.turn_deg, back.about_m);
     closed.truths.push_back(truth);
-    path.add(odometry, std::nullopt);
+    path.add(odometry, back.fixes
+                           ? std::optional<Eigen::Vector2d>(Eigen::Vector2d(truth.x_m, truth.y_m))
+                           : std::nullopt);
     if (closer.add_scan(odometry, laser_scan_at(s <= kStreetM ? out_walls : back_walls, truth))) {
       const std::size_t count = closer.find_closures(path, found);
       closed.closures.insert(closed.closures.end(), found.begin(),
@@ -118,6 +129,43 @@ TEST(LoopCloser, TheWayBackIsMatchedToTheWayOutWhereTheyTrulyLie) {
   EXPECT_LT(worst_m, 0.2);
   EXPECT_LT(worst_sigmas, 3.0);
   EXPECT_LT(degrees_from_radians(worst_rad), 0.2);
+}
+
+// The worst closure's offset from the truth, in metres and degrees.
+Eigen::Vector2d worst_closure_error(const StreetDrive& closed) {
+  Eigen::Vector2d worst = Eigen::Vector2d::Zero();
+  for (const LoopClosure& closure : closed.closures) {
+    const Eigen::Vector3d truly = pose_in_frame_of(truth_at_stamp(closed, closure.earlier.stamp_ns),
+                                                   truth_at_stamp(closed, closure.later.stamp_ns));
+    worst.x() = std::max(worst.x(), (closure.measured - truly).head<2>().norm());
+    worst.y() = std::max(
+        worst.y(), degrees_from_radians(std::abs(wrap_angle(closure.measured.z() - truly.z()))));
+  }
+  return worst;
+}
+
+TEST(LoopCloser, ARevisitTurnedPastTheWindowIsFoundByTheWiderSearch) {
+  // With fixes the window is 2.5 m and 3 degrees; the way back turned 4 degrees (where the
+  // gyroscope alone carried the newest stretch) is past it, and the wider search (4 m,
+  // 5 degrees, 80 % of the cells on the earlier submap's) finds it where it truly lies.
+  WayBack turned;
+  turned.turn_deg = 4.0;
+  turned.about_m = Eigen::Vector2d(60.0, 0.0);
+  turned.fixes = true;
+  const StreetDrive wide = drive_out_and_back(LoopClosureConfig{}, street_of(8.0), turned);
+  LoopClosureConfig narrow_only;
+  narrow_only.wide_search_radius_m = 0.0;
+  narrow_only.wide_search_yaw_deg = 0.0;
+  const StreetDrive narrow = drive_out_and_back(narrow_only, street_of(8.0), turned);
+  const Eigen::Vector2d worst = worst_closure_error(wide);
+  std::printf("%zu closures (%llu by the wider search; worst %.3f m, %.3f deg), %zu without it\n",
+              wide.closures.size(), static_cast<unsigned long long>(wide.counters.wide_closures),
+              worst.x(), worst.y(), narrow.closures.size());
+  EXPECT_EQ(narrow.closures.size(), 0u);
+  ASSERT_GE(wide.closures.size(), 3u);
+  EXPECT_EQ(wide.counters.wide_closures, wide.closures.size());
+  EXPECT_LT(worst.x(), 0.2);
+  EXPECT_LT(worst.y(), 0.2);
 }
 
 TEST(LoopCloser, AnotherStreetIsNotTakenForTheOneSeenBefore) {
@@ -200,6 +248,10 @@ TEST(LoopCloser, BadConfigurationsAreNamed) {
   EXPECT_NE(problem([](LoopClosureConfig& c) { c.max_candidates = 5; }).find("max_candidates"),
             std::string::npos);
   EXPECT_NE(problem([](LoopClosureConfig& c) { c.min_score = 1.5; }).find("min_score"),
+            std::string::npos);
+  EXPECT_NE(problem([](LoopClosureConfig& c) { c.wide_min_score = 0.0; }).find("wide_min_score"),
+            std::string::npos);
+  EXPECT_NE(problem([](LoopClosureConfig& c) { c.wide_search_yaw_deg = 50.0; }).find("wide_search"),
             std::string::npos);
   EXPECT_NE(problem([](LoopClosureConfig& c) { c.max_range_m = 5000.0; }).find("30000 cells"),
             std::string::npos);

@@ -97,16 +97,16 @@ inline Pose2 street_truth_at(double s_m) {
   return {stamp, 2.0 * kStreetM - s_m, -1.0, std::numbers::pi};
 }
 
-// The way back's odometry: turned by 1 degree about the turn and shifted.
-inline Pose2 drifted_back(const Pose2& truth) {
+// The way back's odometry: turned (by 1 degree) about a point (the turn) and shifted.
+inline Pose2 drifted_back(const Pose2& truth, double turn_deg = 1.0,
+                          const Eigen::Vector2d& about_m = Eigen::Vector2d(kStreetM, 0.0)) {
   if (truth.yaw_rad == 0.0) {
     return truth;
   }
-  const Eigen::Rotation2Dd turn(radians_from_degrees(1.0));
-  const Eigen::Vector2d about_m(kStreetM, 0.0);
+  const Eigen::Rotation2Dd turn(radians_from_degrees(turn_deg));
   const Eigen::Vector2d moved_m = turn * (Eigen::Vector2d(truth.x_m, truth.y_m) - about_m) +
                                   about_m + Eigen::Vector2d(0.5, 0.3);
-  return {truth.stamp_ns, moved_m.x(), moved_m.y(), truth.yaw_rad + radians_from_degrees(1.0)};
+  return {truth.stamp_ns, moved_m.x(), moved_m.y(), truth.yaw_rad + radians_from_degrees(turn_deg)};
 }
 
 }  // namespace blockmap::synthetic_street

@@ -74,6 +74,12 @@ struct LoopClosureConfig {
   double max_search_radius_m = 8.0;
   double max_search_yaw_deg = 8.0;
   double min_score = 0.6;
+  // Where the window above finds no match, a wider one (0: none) on a coarser level, whose
+  // match must lie on the earlier submap's surfaces more: with fixes, the newest stretch of
+  // the path can be turned by a few degrees where the gyroscope alone carried it.
+  double wide_search_radius_m = 4.0;
+  double wide_search_yaw_deg = 5.0;
+  double wide_min_score = 0.8;
   // A cell's offset across its surface, as one of many neighbours (they are not independent
   // measurements), and the least sigmas a closure has.
   double point_sigma_m = 0.5;
@@ -89,11 +95,12 @@ inline constexpr std::size_t kMaxClosureCandidates = 4;
 
 struct LoopClosureCounters {
   std::uint64_t submaps = 0;
-  std::uint64_t thinnings = 0;   // the submaps filled and every other one went
-  std::uint64_t searches = 0;    // earlier submaps a finished one was matched against
-  std::uint64_t closures = 0;    // matches verified
-  std::uint64_t low_score = 0;   // too few cells on the earlier submap's
-  std::uint64_t off_window = 0;  // the match left the search window
+  std::uint64_t thinnings = 0;      // the submaps filled and every other one went
+  std::uint64_t searches = 0;       // earlier submaps a finished one was matched against
+  std::uint64_t closures = 0;       // matches verified
+  std::uint64_t low_score = 0;      // too few cells on the earlier submap's
+  std::uint64_t off_window = 0;     // the match left the search window
+  std::uint64_t wide_closures = 0;  // of the closures, found by the wider search
 };
 
 class LoopCloser {
@@ -161,9 +168,13 @@ class LoopCloser {
     double radius_m = 0.0;
     double yaw_rad = 0.0;
     std::size_t level = 0;  // the level searched, and refined from
+    double min_score = 0.0;
   };
   [[nodiscard]] Window window_between(const Submap& target, const Submap& query,
                                       bool placed_by_fixes) const noexcept;
+  // The wider window tried where `window` found nothing; its radius 0 when it is no wider.
+  [[nodiscard]] Window widened(const Window& window) const noexcept;
+  [[nodiscard]] std::size_t level_spanning(double radius_m) const noexcept;
   [[nodiscard]] Eigen::Vector3d coarse_search(const Eigen::Vector3d& guess,
                                               const Window& window) const noexcept;
   void refine(const Level& level, const Eigen::Vector3d& start, Match& match) const noexcept;

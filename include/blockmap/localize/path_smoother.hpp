@@ -67,6 +67,11 @@ struct PathSmootherConfig {
   // counts over the dead-reckoned time only.
   double matched_across_sigma_per_sqrt_m = 0.01;
   double matched_yaw_sigma_per_sqrt_m = 0.002;
+  // The gyroscope's bias before any scan was matched (0: calibrated): nothing has taught it
+  // yet, and the turn the odometry carries alone till then takes this much more variance
+  // per second: sigma^2 times the time such a bias lasts (a Gauss-Markov bias's turn).
+  double unlearnt_yaw_rate_bias_sigma_radps = 0.0;
+  double unlearnt_yaw_rate_bias_time_s = 20.0;
   // The receiver: the slow part of its error per axis and how long it lasts, and the fast
   // part per fix (multipath and noise) for a fix of sigma 1 (add()'s fix_sigma_scale).
   double bias_sigma_m = 1.2;
@@ -185,13 +190,10 @@ class PathSmoother {
   [[nodiscard]] Eigen::Vector2d slow_error(const Pose2& odometry) const noexcept;
 
   // Of the motion from the last keyframe to the next one, this much (and this long) the
-  // odometry carried alone (no scan was matched over it): it is weighed with the odometry's
-  // sigmas, the rest with the matched ones, and only its time with the turn's per second.
-  void note_dead_reckoning(double distance_m, double duration_s) noexcept {
-    noted_dead_reckoning_ = true;
-    dead_reckoned_m_ += distance_m;
-    dead_reckoned_s_ += duration_s;
-  }
+  // odometry carried alone (no scan was matched over it), and this long scans were matched:
+  // the first is weighed with the odometry's sigmas, the rest with the matched ones, and only
+  // its time with the turn's per second (and, before any scan was matched, the bias's).
+  void note_dead_reckoning(double distance_m, double duration_s, double matched_s) noexcept;
 
   // The wall `key` (the caller's name for it) that `earlier` saw is the wall `later` sees,
   // on another pass. A tie of the same key whose later look is of this pass (less than
@@ -258,6 +260,7 @@ class PathSmoother {
     double state[5] = {};          // x, y, yaw, bx, by as solved
     double dead_reckoned_m = 0.0;  // of the motion from the keyframe before: odometry alone
     double dead_reckoned_s = 0.0;
+    double unlearnt_turn_variance_rad2 = 0.0;  // the gyroscope's bias over dead_reckoned_s
   };
   // The normal equations' blocks at keyframe i: the diagonal, the one coupling it to i + 1,
   // and the gradient; the band's factors overwrite the first two (L with S = L L', and
@@ -349,6 +352,8 @@ class PathSmoother {
   std::size_t closure_count_ = 0;
   double dead_reckoned_m_ = 0.0;  // noted since the last keyframe
   double dead_reckoned_s_ = 0.0;
+  double unlearnt_turn_variance_rad2_ = 0.0;
+  double matched_s_ = 0.0;              // noted so far: till then the gyroscope's bias is unlearnt
   bool noted_dead_reckoning_ = false;   // the caller tells matched motion from odometry's
   double first_information_[2] = {};    // the first keyframe's hold: position, yaw (0: none)
   bool placings_carry_offset_ = false;  // placings share the slow error (carry_map_offset())

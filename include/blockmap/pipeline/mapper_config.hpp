@@ -166,6 +166,7 @@ struct MapperConfig {
 [[nodiscard]] map::VoxelWindowConfig window_config(const MapperConfig& config) noexcept;
 [[nodiscard]] planes::PlanesConfig detector_config(const MapperConfig& config) noexcept;
 [[nodiscard]] localize::ScanMatchConfig matcher_config(const MapperConfig& config) noexcept;
+[[nodiscard]] localize::PathSmootherConfig path_config(const MapperConfig& config) noexcept;
 [[nodiscard]] map::PlaneRegistryConfig registry_config(const MapperConfig& config) noexcept;
 [[nodiscard]] bool solves_the_path(const MapperConfig& config) noexcept;
 
