@@ -86,6 +86,7 @@ void read_loop_closure_table(TableReader& t, localize::LoopClosureConfig& l) {
   l.max_search_radius_m = t.positive_or("max_search_radius_m", l.max_search_radius_m);
   l.max_search_yaw_deg = t.positive_or("max_search_yaw_deg", l.max_search_yaw_deg);
   l.min_score = t.positive_or("min_score", l.min_score);
+  l.last_submap_min_m = t.non_negative_or("last_submap_min_m", l.last_submap_min_m);
   l.wide_search_radius_m = t.non_negative_or("wide_search_radius_m", l.wide_search_radius_m);
   l.wide_search_yaw_deg = t.non_negative_or("wide_search_yaw_deg", l.wide_search_yaw_deg);
   l.wide_min_score = t.positive_or("wide_min_score", l.wide_min_score);

@@ -71,6 +71,9 @@ std::string validate(const LoopClosureConfig& config) {
     return "loop_closure: search_radius_per_m and search_yaw_deg_per_m must not be negative, "
            "max_search_radius_m and max_search_yaw_deg (at most 45) not below the fixed ones";
   }
+  if (!(config.last_submap_min_m >= 0.0)) {
+    return "loop_closure: last_submap_min_m must not be negative";
+  }
   if (!(config.wide_search_radius_m >= 0.0) || !(config.wide_search_yaw_deg >= 0.0) ||
       config.wide_search_yaw_deg > 45.0 ||
       !(config.wide_min_score > 0.0 && config.wide_min_score <= 1.0)) {
@@ -172,7 +175,7 @@ bool LoopCloser::add_scan(const Pose2& pose,
 }
 
 bool LoopCloser::finish_last_submap() noexcept {
-  if (!open_ || travel_m_ - open_from_m_ < 0.5 * config_.submap_length_m) {
+  if (!open_ || travel_m_ - open_from_m_ < config_.last_submap_min_m) {
     return false;
   }
   finish_submap();

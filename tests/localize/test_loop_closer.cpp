@@ -183,15 +183,16 @@ TEST(LoopCloser, AnotherStreetIsNotTakenForTheOneSeenBefore) {
   EXPECT_EQ(closed.counters.low_score + closed.counters.off_window, closed.counters.searches);
 }
 
-// A route that ends 7 m into a submap: the run's last metres are matched too, at its end
-// (a loop that ends where it began closes there), and the closure says where they truly lie.
+// A route that ends 4 m into a submap (under half of it): the run's last metres are matched
+// too, at its end (a loop that ends where it began closes there), and the closure says where
+// they truly lie.
 TEST(LoopCloser, TheLastMetresOfTheRunAreMatchedAtItsEnd) {
   BLOCKMAP_LONG_TEST();
   const std::vector<Facade> walls = street_of(8.0);
   CloserAndPath run{LoopClosureConfig{}};
   LoopCloser& closer = run.closer;
   PathSmoother& path = run.path;
-  // 100 m back, then on to 7 m past the next submap finished.
+  // 100 m back, then on to 4 m past the next submap finished.
   double end_m = 2.0 * kStreetM;
   std::vector<Pose2> truths;
   for (double s = 0.0; s <= end_m; s += kScanStepM) {
@@ -202,7 +203,7 @@ TEST(LoopCloser, TheLastMetresOfTheRunAreMatchedAtItsEnd) {
     if (closer.add_scan(drifted_back(truth), laser_scan_at(walls, truth))) {
       static_cast<void>(closer.find_closures(path, found));
       if (s >= kStreetM + 100.0 && end_m == 2.0 * kStreetM) {
-        end_m = s + 7.0;
+        end_m = s + 4.0;
       }
     }
   }
@@ -251,6 +252,9 @@ TEST(LoopCloser, BadConfigurationsAreNamed) {
             std::string::npos);
   EXPECT_NE(problem([](LoopClosureConfig& c) { c.wide_min_score = 0.0; }).find("wide_min_score"),
             std::string::npos);
+  EXPECT_NE(
+      problem([](LoopClosureConfig& c) { c.last_submap_min_m = -1.0; }).find("last_submap_min_m"),
+      std::string::npos);
   EXPECT_NE(problem([](LoopClosureConfig& c) { c.wide_search_yaw_deg = 50.0; }).find("wide_search"),
             std::string::npos);
   EXPECT_NE(problem([](LoopClosureConfig& c) { c.max_range_m = 5000.0; }).find("30000 cells"),

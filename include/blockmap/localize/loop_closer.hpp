@@ -53,6 +53,9 @@ struct LoopClosureConfig {
   bool enabled = true;
   double cell_m = 0.1;
   double submap_length_m = 10.0;
+  // At the end of the run the submap being filled is matched too when the robot drove this
+  // far into it (a loop that ends where it began overlaps its start by its last metres).
+  double last_submap_min_m = 2.5;
   double scan_spacing_m = 0.5;
   double max_range_m = 30.0;  // returns farther from the robot are not kept
   // Neighbouring returns closer than this mark the cells between them (one surface).
@@ -115,8 +118,7 @@ class LoopCloser {
   // finished (find_closures() is due).
   bool add_scan(const Pose2& pose, std::span<const Eigen::Vector2d> robot_points_m) noexcept;
   // At the end of the run: the submap being filled is finished as it is, when the robot drove
-  // at least half a submap's length into it (a loop that ends where it began closes in its
-  // last metres). Returns whether it was (find_closures() is due).
+  // at least last_submap_min_m into it. Returns whether it was (find_closures() is due).
   bool finish_last_submap() noexcept;
 
   // After add_scan() finished a submap: it is matched against the earlier ones near it by
