@@ -100,6 +100,11 @@ void PathSmoother::init(Arena& arena, const PathSmootherConfig& config) {
   closure_count_ = 0;
   first_information_[0] = first_information_[1] = 0.0;
   placings_carry_offset_ = false;
+  dead_reckoned_m_ = 0.0;
+  dead_reckoned_s_ = 0.0;
+  unlearnt_turn_variance_rad2_ = 0.0;
+  matched_any_ = false;
+  noted_dead_reckoning_ = false;
   counters_ = {};
 }
 
@@ -292,8 +297,8 @@ void PathSmoother::note_dead_reckoning(double distance_m, double duration_s,
   noted_dead_reckoning_ = true;
   dead_reckoned_m_ += distance_m;
   dead_reckoned_s_ += duration_s;
-  matched_s_ += matched_s;
-  if (matched_s_ <= 0.0) {
+  matched_any_ = matched_any_ || matched_s > 0.0;
+  if (!matched_any_) {
     const double sigma_radps = config_.unlearnt_yaw_rate_bias_sigma_radps;
     unlearnt_turn_variance_rad2_ +=
         sigma_radps * sigma_radps * config_.unlearnt_yaw_rate_bias_time_s * duration_s;

@@ -353,7 +353,7 @@ class PathSmoother {
   double dead_reckoned_m_ = 0.0;  // noted since the last keyframe
   double dead_reckoned_s_ = 0.0;
   double unlearnt_turn_variance_rad2_ = 0.0;
-  double matched_s_ = 0.0;              // noted so far: till then the gyroscope's bias is unlearnt
+  bool matched_any_ = false;            // a scan was matched: the gyroscope's bias is learnt
   bool noted_dead_reckoning_ = false;   // the caller tells matched motion from odometry's
   double first_information_[2] = {};    // the first keyframe's hold: position, yaw (0: none)
   bool placings_carry_offset_ = false;  // placings share the slow error (carry_map_offset())
