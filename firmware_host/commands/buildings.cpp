@@ -4,7 +4,6 @@
 // a point cloud file (planes detected first).
 #include <CLI/CLI.hpp>
 #include <chrono>
-#include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -18,11 +17,13 @@
 #include "blockmap/hal/config/buildings_config.hpp"
 #include "blockmap/hal/config/config_error.hpp"
 #include "blockmap/hal/config/planes_config.hpp"
+#include "blockmap/hal/files.hpp"
 #include "cli.hpp"
 #include "commands/cloud_planes.hpp"
 #include "commands/commands.hpp"
 #include "commands/geodetic_option.hpp"
 #include "outputs/building_outputs.hpp"
+#include "outputs/output_file.hpp"
 #include "outputs/plane_json.hpp"
 #include "outputs/vrml.hpp"
 
@@ -38,18 +39,17 @@ struct BuildingsOptions {
   std::string points;  // a cloud drawn under the --svg picture
   std::string geojson;
   std::string origin;
+  double budget_mib = kDefaultOfflineBudgetMiB;
 };
 
-// Writes `write` into `path`; false (and one line on err) when it cannot.
+// Writes `write` into `path`, when one is given; false (and one line on err) when it cannot.
 template <typename Write>
 bool write_file(const std::string& path, std::ostream& err, Write write) {
   if (path.empty()) {
     return true;
   }
-  std::ofstream file(path);
-  write(file);
-  if (!file) {
-    err << "blockmap: " << path << ": cannot write\n";
+  if (const std::string problem = write_output(path, write); !problem.empty()) {
+    err << "blockmap: " << problem << '\n';
     return false;
   }
   return true;
@@ -59,14 +59,20 @@ bool is_plane_list(const std::string& path) {
   return std::filesystem::path(path).extension() == ".json";
 }
 
+// A parsed JSON document takes about ten times its text: the plane list's file is refused
+// beyond this share of the budget.
+constexpr std::size_t kJsonBytesPerBudgetByte = 16;
+
 // The plane list of a JSON file; throws std::invalid_argument with the file's name.
-std::vector<msg::PlanePatch> read_plane_list(const std::string& path) {
-  std::ifstream file(path);
-  if (!file) {
-    throw std::invalid_argument(path + ": cannot open");
+std::vector<msg::PlanePatch> read_plane_list(const std::string& path, double budget_mib) {
+  std::string text;
+  try {
+    text = hal::read_whole_file(path, mib_bytes(budget_mib) / kJsonBytesPerBudgetByte);
+  } catch (const hal::FileError& error) {
+    throw std::invalid_argument(error.what());
   }
   try {
-    return planes_from_json(nlohmann::json::parse(file));
+    return planes_from_json(nlohmann::json::parse(text));
   } catch (const nlohmann::json::exception& error) {
     throw std::invalid_argument(path + ": not JSON (" + std::string(error.what()) + ")");
   } catch (const std::invalid_argument& error) {
@@ -96,16 +102,22 @@ int fit_buildings(const BuildingsOptions& options, std::ostream& out, std::ostre
   std::vector<msg::PlanePatch> planes;
   hal::cloud::PointCloud cloud;
   if (is_plane_list(options.input)) {
-    planes = read_plane_list(options.input);
+    planes = read_plane_list(options.input, options.budget_mib);
   } else {
-    cloud = hal::cloud::read_point_cloud(options.input);
-    planes = detect_cloud_planes(cloud, planes_config, options.input, err).planes;
+    cloud = read_cloud_within(options.input, options.budget_mib);
+    planes =
+        detect_cloud_planes(cloud, planes_config, options.input, options.budget_mib, err).planes;
   }
   if (!options.points.empty()) {
-    cloud = hal::cloud::read_point_cloud(options.points);
+    cloud = read_cloud_within(options.points, options.budget_mib);
   }
 
-  Arena arena(buildings::BuildingFitter::arena_bytes(config));
+  const std::size_t needed = buildings::BuildingFitter::arena_bytes(config);
+  if (needed > mib_bytes(options.budget_mib)) {
+    err << "blockmap: " << over_budget(needed, options.budget_mib) << '\n';
+    return kExitUsage;
+  }
+  Arena arena(needed);
   buildings::BuildingFitter fitter;
   fitter.init(arena, config);
   arena.seal();
@@ -173,6 +185,7 @@ Command add_buildings_command(CLI::App& app) {
                       "also write the footprints as GeoJSON in WGS-84 (needs --origin)");
   command->add_option("--origin", options->origin,
                       "where the input's frame is on Earth: LAT,LON,HEIGHT (degrees, metres)");
+  add_budget_option(*command, options->budget_mib);
   return {command, [options](std::ostream& out, std::ostream& err) {
             try {
               return fit_buildings(*options, out, err);

@@ -15,6 +15,7 @@
 #include <utility>
 #include <vector>
 
+#include "blockmap/hal/files.hpp"
 #include "blockmap/hal/protocol/byte_log.hpp"
 #include "cli.hpp"
 #include "commands/commands.hpp"
@@ -68,6 +69,9 @@ bool unpack_byte_log(Capture& capture, std::ostream& err) {
   }
 }
 
+// Captures are decoded whole: an hour of a laser's bytes is about 200 MiB.
+constexpr std::size_t kMaxCaptureBytes = std::size_t{1} << 30;
+
 // Reads a whole capture ("-" is standard input). Offline decoding may allocate: it is not the
 // onboard runtime. False with a message when the file cannot be read; a damaged byte log is
 // reported and its good records kept (`intact` false).
@@ -76,12 +80,13 @@ bool read_capture(Capture& capture, bool& intact, std::ostream& err) {
     capture.bytes.assign(std::istreambuf_iterator<char>(std::cin),
                          std::istreambuf_iterator<char>());
   } else {
-    std::ifstream file(capture.path, std::ios::binary);
-    if (!file) {
-      err << "blockmap: cannot open '" << capture.path << "'\n";
+    try {
+      const std::string bytes = hal::read_whole_file(capture.path, kMaxCaptureBytes);
+      capture.bytes.assign(bytes.begin(), bytes.end());
+    } catch (const hal::FileError& error) {
+      err << "blockmap: " << error.what() << '\n';
       return false;
     }
-    capture.bytes.assign(std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>());
   }
   intact = true;
   if (hal::protocol::byte_log::has_magic(capture.bytes)) {

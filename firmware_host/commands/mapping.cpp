@@ -1,5 +1,6 @@
 #include "commands/mapping.hpp"
 
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>
 #include <ostream>
@@ -15,6 +16,12 @@ constexpr double kMiB = 1024.0 * 1024.0;
 
 }  // namespace
 
+void add_udp_option(CLI::App& command, std::string& destination) {
+  command
+      .add_option("--udp", destination, "also send each binary plane-stream record to HOST:PORT")
+      ->check(CLI::Validator(&hal::linux_backend::UdpSender::check_destination, ""));
+}
+
 pipeline::MapperConfig mapper_config_for(const hal::config::RobotSpec& robot,
                                          const MappingOptions& options) {
   pipeline::MapperConfig config = hal::config::mapper_config_for(robot);
@@ -25,20 +32,13 @@ pipeline::MapperConfig mapper_config_for(const hal::config::RobotSpec& robot,
 }
 
 std::string MappingSession::start(const pipeline::MapperConfig& config,
-                                  const MappingOptions& options, std::ostream& out,
-                                  std::ostream& err) {
+                                  const MappingOptions& options, std::ostream& err) {
   if (std::string problem = pipeline::validate(config); !problem.empty()) {
     return problem;
   }
   const std::size_t needed = pipeline::Mapper::arena_bytes(config);
-  const auto budget = static_cast<std::size_t>(options.budget_mib * kMiB);
-  if (needed > budget) {
-    char text[160];
-    std::snprintf(text, sizeof text,
-                  "the configured capacities need %.1f MiB, over the %.1f MiB budget "
-                  "(--budget-mib, or smaller capacities)",
-                  static_cast<double>(needed) / kMiB, options.budget_mib);
-    return text;
+  if (needed > mib_bytes(options.budget_mib)) {
+    return over_budget(needed, options.budget_mib);
   }
   arena_ = std::make_unique<Arena>(needed);
   mapper_.init(*arena_, config);
@@ -56,6 +56,10 @@ std::string MappingSession::start(const pipeline::MapperConfig& config,
   err << " MiB\n";
   poses_.resize(config.localizer.filter.history_steps + 1);
   started_ = std::chrono::steady_clock::now();
+  return {};
+}
+
+std::string MappingSession::open_outputs(const MappingOptions& options, std::ostream& out) {
   if (options.out.empty()) {
     outputs_.open_trajectory_only(out);
     return {};

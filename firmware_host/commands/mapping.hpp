@@ -16,8 +16,13 @@
 #include "blockmap/hal/config/robot.hpp"
 #include "blockmap/hal/geodesy.hpp"
 #include "blockmap/pipeline/mapper.hpp"
+#include "commands/memory_budget.hpp"
 #include "outputs/map_outputs.hpp"
 #include "outputs/output_thread.hpp"
+
+namespace CLI {
+class App;
+}
 
 namespace blockmap::cli {
 
@@ -25,7 +30,7 @@ struct MappingOptions {
   std::string out;
   std::string config;  // a TOML file: [planes], [buildings], [window], [projection]
   std::string udp;     // HOST:PORT for the binary plane stream, or empty
-  double budget_mib = 64.0;
+  double budget_mib = kDefaultMapperBudgetMiB;
   bool trajectory_only = false;  // localize only: trajectory.csv, no planes
   bool cloud = false;            // also cloud.ply: every projected point (kept in memory)
   bool resume = false;           // carry on the streams in `out` (a resumed map): append to them
@@ -44,6 +49,9 @@ class CloudRecorder final : public pipeline::PointSink {
   std::vector<Eigen::Vector3f> points_;
 };
 
+// --udp HOST:PORT into `destination`, its form and port checked as the command line is read.
+void add_udp_option(CLI::App& command, std::string& destination);
+
 // The mapper's configuration for `robot` (hal::config::mapper_config_for) with the [planes]
 // table of options.config when given. Throws ConfigError.
 [[nodiscard]] pipeline::MapperConfig mapper_config_for(const hal::config::RobotSpec& robot,
@@ -51,12 +59,14 @@ class CloudRecorder final : public pipeline::PointSink {
 
 class MappingSession {
  public:
-  // Checks the configuration and the budget, takes the arena, initializes the mapper, prints
-  // the memory report on `err`, and opens the outputs (with no options.out, the trajectory
-  // only, to `out`). Empty when it worked, else why not.
+  // Checks the configuration and the budget, takes the arena, initializes the mapper and
+  // prints the memory report on `err`. Empty when it worked, else what in the configuration
+  // is wrong.
   [[nodiscard]] std::string start(const pipeline::MapperConfig& config,
-                                  const MappingOptions& options, std::ostream& out,
-                                  std::ostream& err);
+                                  const MappingOptions& options, std::ostream& err);
+  // Opens the outputs (with no options.out, the trajectory only, to `out`). Empty when it
+  // worked, else which file or folder cannot be written.
+  [[nodiscard]] std::string open_outputs(const MappingOptions& options, std::ostream& out);
   [[nodiscard]] const MapOutputs& outputs() const noexcept { return outputs_; }
   [[nodiscard]] MapOutputs& outputs() noexcept { return outputs_; }
 

@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <ostream>
@@ -21,6 +20,7 @@
 #include "cli.hpp"
 #include "commands/cloud_planes.hpp"
 #include "commands/commands.hpp"
+#include "outputs/output_file.hpp"
 #include "outputs/plane_json.hpp"
 #include "outputs/plane_picture.hpp"
 
@@ -33,6 +33,7 @@ struct PlanesOptions {
   std::string out;
   std::string svg;
   bool top_view = false;
+  double budget_mib = kDefaultOfflineBudgetMiB;
 };
 
 // The picture, when asked for; false (and one line on err) when it cannot be written.
@@ -55,10 +56,11 @@ bool write_picture(const PlanesOptions& options, const hal::cloud::PointCloud& c
       plane.polygon_m[i] -= cloud.origin_m;
     }
   }
-  std::ofstream file(options.svg);
-  write_plane_picture(file, cloud.points_m, relative, view);
-  if (!file) {
-    err << "blockmap: " << options.svg << ": cannot write\n";
+  const std::string problem = write_output(options.svg, [&](std::ostream& file) {
+    write_plane_picture(file, cloud.points_m, relative, view);
+  });
+  if (!problem.empty()) {
+    err << "blockmap: " << problem << '\n';
     return false;
   }
   return true;
@@ -66,8 +68,12 @@ bool write_picture(const PlanesOptions& options, const hal::cloud::PointCloud& c
 
 }  // namespace
 
+hal::cloud::PointCloud read_cloud_within(const std::string& path, double budget_mib) {
+  return hal::cloud::read_point_cloud(path, mib_bytes(budget_mib));
+}
+
 CloudPlanes detect_cloud_planes(const hal::cloud::PointCloud& cloud, planes::PlanesConfig config,
-                                const std::string& name, std::ostream& err) {
+                                const std::string& name, double budget_mib, std::ostream& err) {
   // Capacities no larger than this cloud needs: its samples are counted before the arena is
   // made (a city scan has about one sample per ten points).
   std::size_t samples = 0;
@@ -79,7 +85,11 @@ CloudPlanes detect_cloud_planes(const hal::cloud::PointCloud& cloud, planes::Pla
   config.max_patches =
       std::max(config.max_planes, std::min(config.max_patches, config.max_samples));
 
-  Arena arena(planes::PlaneDetector::arena_budget_bytes(config));
+  const std::size_t needed = planes::PlaneDetector::arena_budget_bytes(config);
+  if (needed > mib_bytes(budget_mib)) {
+    throw hal::ConfigError(over_budget(needed, budget_mib));
+  }
+  Arena arena(needed);
   planes::PlaneDetector detector;
   detector.init(arena, config);
   arena.seal();
@@ -130,8 +140,9 @@ int detect_planes(const PlanesOptions& options, std::ostream& out, std::ostream&
   if (!options.config.empty()) {
     config = hal::config::load_planes_config(options.config);
   }
-  const hal::cloud::PointCloud cloud = hal::cloud::read_point_cloud(options.cloud);
-  const CloudPlanes detected = detect_cloud_planes(cloud, config, options.cloud, err);
+  const hal::cloud::PointCloud cloud = read_cloud_within(options.cloud, options.budget_mib);
+  const CloudPlanes detected =
+      detect_cloud_planes(cloud, config, options.cloud, options.budget_mib, err);
   const std::vector<msg::PlanePatch>& planes = detected.planes;
   nlohmann::json list = nlohmann::json::array();
   for (const msg::PlanePatch& plane : planes) {
@@ -147,10 +158,10 @@ int detect_planes(const PlanesOptions& options, std::ostream& out, std::ostream&
     out << document.dump() << '\n';
     return kExitOk;
   }
-  std::ofstream file(options.out);
-  file << document.dump() << '\n';
-  if (!file) {
-    err << "blockmap: " << options.out << ": cannot write\n";
+  const std::string problem =
+      write_output(options.out, [&](std::ostream& file) { file << document.dump() << '\n'; });
+  if (!problem.empty()) {
+    err << "blockmap: " << problem << '\n';
     return kExitFailure;
   }
   return kExitOk;
@@ -170,6 +181,7 @@ Command add_planes_command(CLI::App& app) {
   command->add_option("--svg", options->svg,
                       "also draw the planes over the points into this SVG file (an oblique view)");
   command->add_flag("--top", options->top_view, "draw the SVG from straight above");
+  add_budget_option(*command, options->budget_mib);
   return {command, [options](std::ostream& out, std::ostream& err) {
             try {
               return detect_planes(*options, out, err);

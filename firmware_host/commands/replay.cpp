@@ -208,24 +208,33 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
   hal::devices::SegwayBaseConfig base_config;
   hal::config::RobotSpec robot;
   pipeline::MapperConfig config;
+  const bool map_planes = !options.mapping.out.empty() && !options.mapping.trajectory_only;
   if (fs::exists(dir / "robot.toml")) {
-    robot = hal::config::load_robot((dir / "robot.toml").string());
-    hal::config::require_lms2xx_lasers(robot, "the replay of byte logs");
+    // The log's own file: a fault in it is the data's (1), not the command line's.
+    try {
+      robot = hal::config::load_robot((dir / "robot.toml").string());
+      hal::config::require_lms2xx_lasers(robot, "the replay of byte logs");
+    } catch (const hal::ConfigError& error) {
+      err << "blockmap: replay: " << error.what() << '\n';
+      return kExitFailure;
+    }
     base_config = hal::config::segway_base_config_for(robot);
     // A laser the logger did not record (an import from odometry and GPS) is left out.
     std::erase_if(robot.lasers, [&](const hal::config::LaserSpec& laser) {
       const bool recorded = fs::exists(dir / ("laser_" + laser.name + ".bytelog"));
-      if (!recorded && !options.mapping.out.empty() && !options.mapping.trajectory_only) {
+      if (!recorded && map_planes) {
         err << "replay: no laser_" << laser.name << ".bytelog: mapping without that laser\n";
       }
       return !recorded;
     });
     config = mapper_config_for(robot, options.mapping);
+  } else if (map_planes) {
+    err << "replay: warning: no robot.toml in " << options.dir
+        << ": the lasers' mounts are unknown, so no laser log is read (the trajectory only)\n";
   }
   config.localizer.filter.particle_count = options.particles;
   config.localizer.filter.seed = options.seed;
   // Without --out, or asked to, only the trajectory is wanted: the lasers are not read.
-  const bool map_planes = !options.mapping.out.empty() && !options.mapping.trajectory_only;
   if (!map_planes) {
     robot.lasers.clear();
     shrink_to_localization(config);
@@ -301,9 +310,12 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
   auto session = std::make_unique<MappingSession>();
   // The memory report only when mapping: a trajectory alone is a quiet job.
   std::ostringstream quiet;
-  if (const std::string problem =
-          session->start(config, options.mapping, out, map_planes ? err : quiet);
+  if (const std::string problem = session->start(config, options.mapping, map_planes ? err : quiet);
       !problem.empty()) {
+    err << "blockmap: replay: " << problem << '\n';
+    return kExitUsage;
+  }
+  if (const std::string problem = session->open_outputs(options.mapping, out); !problem.empty()) {
     err << "blockmap: replay: " << problem << '\n';
     return kExitFailure;
   }
@@ -386,13 +398,8 @@ Command add_replay_command(CLI::App& app) {
   command->add_option("--config", options->mapping.config,
                       "a TOML file: [planes] the detector, [buildings] the fitter, [window] and "
                       "[projection] the map (config/README.md)");
-  command->add_option("--udp", options->mapping.udp,
-                      "also send each binary plane-stream record to HOST:PORT");
-  command
-      ->add_option("--budget-mib", options->mapping.budget_mib,
-                   "the memory budget the configured capacities must fit in")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
+  add_udp_option(*command, options->mapping.udp);
+  add_budget_option(*command, options->mapping.budget_mib);
   command->add_flag("--cloud", options->mapping.cloud,
                     "also write cloud.ply, every projected point");
   command->add_flag("--trajectory-only", options->mapping.trajectory_only,
@@ -420,7 +427,7 @@ Command add_replay_command(CLI::App& app) {
               return replay(*options, out, err);
             } catch (const hal::ConfigError& error) {
               err << "blockmap: replay: " << error.what() << '\n';
-              return kExitFailure;
+              return kExitUsage;
             }
           }};
 }

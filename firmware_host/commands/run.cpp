@@ -83,10 +83,13 @@ int run(const RunOptions& options, std::ostream& err) {
     return kExitFailure;
   }
   auto session = std::make_unique<MappingSession>();
-  if (const std::string problem = session->start(config, options.mapping, err, err);
-      !problem.empty()) {
+  if (const std::string problem = session->start(config, options.mapping, err); !problem.empty()) {
     err << "blockmap: run: " << problem << '\n';
     return kExitUsage;
+  }
+  if (const std::string problem = session->open_outputs(options.mapping, err); !problem.empty()) {
+    err << "blockmap: run: " << problem << '\n';
+    return kExitFailure;
   }
   bool more = true;
   while (more) {
@@ -138,13 +141,8 @@ Command add_run_command(CLI::App& app) {
                    "filter: the particle filter's poses (as on the robot); truth: the "
                    "simulation's true poses")
       ->capture_default_str();
-  command->add_option("--udp", options->mapping.udp,
-                      "also send each binary plane-stream record to HOST:PORT");
-  command
-      ->add_option("--budget-mib", options->mapping.budget_mib,
-                   "the memory budget the configured capacities must fit in")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
+  add_udp_option(*command, options->mapping.udp);
+  add_budget_option(*command, options->mapping.budget_mib);
   command->add_flag("--cloud", options->mapping.cloud,
                     "also write cloud.ply, every projected point");
   command

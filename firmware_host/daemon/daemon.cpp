@@ -433,8 +433,11 @@ class Daemon::Impl {
       }
       options_.mapping.resume = resumed.has_value();
     }
-    if (std::string problem = session_.start(mapper_config, options_.mapping, err, err);
+    if (std::string problem = session_.start(mapper_config, options_.mapping, err);
         !problem.empty()) {
+      return problem;
+    }
+    if (std::string problem = session_.open_outputs(options_.mapping, err); !problem.empty()) {
       return problem;
     }
     std::optional<hal::GeodeticPoint> origin = source_->origin();

@@ -10,6 +10,7 @@
 
 #include "blockmap/hal/protocol/plane_stream.hpp"
 #include "outputs/building_outputs.hpp"
+#include "outputs/output_file.hpp"
 #include "outputs/plane_json.hpp"
 #include "outputs/vrml.hpp"
 
@@ -176,19 +177,18 @@ std::string MapOutputs::write_map_path(const localize::PathSmoother& path) const
   if (!files_ || path.keyframe_count() == 0) {
     return {};
   }
-  std::ofstream file(dir_ / "path.csv");
-  file << "t_s,x_m,y_m,yaw_rad,matched_x_m,matched_y_m,matched_yaw_rad\n";
-  for (std::size_t i = 0; i < path.keyframe_count(); ++i) {
-    const localize::Pose2 solved = path.pose(i);
-    const localize::Pose2& matched = path.odometry(i);
-    char line[160];
-    const int n = std::snprintf(line, sizeof line, "%.6f,%.4f,%.4f,%.6f,%.4f,%.4f,%.6f\n",
-                                seconds_from_ns(solved.stamp_ns), solved.x_m, solved.y_m,
-                                solved.yaw_rad, matched.x_m, matched.y_m, matched.yaw_rad);
-    file.write(line, n);
-  }
-  file.flush();
-  return file ? std::string() : "writing " + (dir_ / "path.csv").string() + " failed (disk full?)";
+  return write_output(dir_ / "path.csv", [&](std::ostream& file) {
+    file << "t_s,x_m,y_m,yaw_rad,matched_x_m,matched_y_m,matched_yaw_rad\n";
+    for (std::size_t i = 0; i < path.keyframe_count(); ++i) {
+      const localize::Pose2 solved = path.pose(i);
+      const localize::Pose2& matched = path.odometry(i);
+      char line[160];
+      const int n = std::snprintf(line, sizeof line, "%.6f,%.4f,%.4f,%.6f,%.4f,%.4f,%.6f\n",
+                                  seconds_from_ns(solved.stamp_ns), solved.x_m, solved.y_m,
+                                  solved.yaw_rad, matched.x_m, matched.y_m, matched.yaw_rad);
+      file.write(line, n);
+    }
+  });
 }
 
 std::string MapOutputs::finish(std::span<const msg::PlanePatch> planes,
@@ -210,27 +210,43 @@ std::string MapOutputs::finish(std::span<const msg::PlanePatch> planes,
   }
   const nlohmann::json document = {
       {"planes", list}, {"points", points}, {"seconds", rounded_to(seconds, 1e-4)}};
-  std::ofstream planes_file(dir_ / "planes.json");
-  planes_file << document.dump(1) << '\n';
-  std::ofstream buildings_file(dir_ / "buildings.json");
-  buildings_file << buildings_json(buildings).dump(1) << '\n';
-  std::ofstream vrml_file(dir_ / "map.wrl");
-  write_vrml(vrml_file, sorted, path_, buildings);
-  std::ofstream picture_file(dir_ / "top_view.svg");
-  write_buildings_picture(picture_file, cloud_m, sorted, buildings, path_);
-  bool geojson_written = true;
-  if (origin) {
-    std::ofstream geojson_file(dir_ / "footprints.geojson");
-    geojson_file << footprints_geojson(buildings, hal::LocalEnuFrame(*origin)).dump(1) << '\n';
-    geojson_written = static_cast<bool>(geojson_file);
+  // The streams first: what was written as the run went is whole before the lists are.
+  if (std::string problem = close_streams(); !problem.empty()) {
+    return problem;
   }
-  jsonl_.flush();
-  binary_.flush();
-  trajectory_.flush();
-  buildings_jsonl_.flush();
-  if (!planes_file || !buildings_file || !vrml_file || !picture_file || !geojson_written ||
-      !jsonl_ || !binary_ || !trajectory_ || !buildings_jsonl_) {
-    return "writing into " + dir_.string() + " failed (disk full?)";
+  std::string problem = write_output(dir_ / "planes.json",
+                                     [&](std::ostream& file) { file << document.dump(1) << '\n'; });
+  const auto next = [&problem](std::string outcome) {
+    if (problem.empty()) {
+      problem = std::move(outcome);
+    }
+  };
+  next(write_output(dir_ / "buildings.json", [&](std::ostream& file) {
+    file << buildings_json(buildings).dump(1) << '\n';
+  }));
+  next(write_output(dir_ / "map.wrl",
+                    [&](std::ostream& file) { write_vrml(file, sorted, path_, buildings); }));
+  next(write_output(dir_ / "top_view.svg", [&](std::ostream& file) {
+    write_buildings_picture(file, cloud_m, sorted, buildings, path_);
+  }));
+  if (origin) {
+    next(write_output(dir_ / "footprints.geojson", [&](std::ostream& file) {
+      file << footprints_geojson(buildings, hal::LocalEnuFrame(*origin)).dump(1) << '\n';
+    }));
+  }
+  return problem;
+}
+
+std::string MapOutputs::close_streams() {
+  const std::pair<std::ofstream*, const char*> streams[] = {{&jsonl_, "planes.jsonl"},
+                                                            {&binary_, "planes.bin"},
+                                                            {&trajectory_, "trajectory.csv"},
+                                                            {&buildings_jsonl_, "buildings.jsonl"}};
+  for (const auto& [file, name] : streams) {
+    file->close();
+    if (file->fail()) {
+      return (dir_ / name).string() + ": write failed (the disk full, or the file gone?)";
+    }
   }
   return {};
 }

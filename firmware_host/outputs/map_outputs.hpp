@@ -45,9 +45,10 @@ class MapOutputs {
   void write_poses(std::span<const localize::Pose3> poses);
   // A line of buildings.jsonl when they differ from the last line written.
   void write_buildings(TimestampNs stamp_ns, std::span<const buildings::Building> buildings);
-  // planes.json, buildings.json, map.wrl, top_view.svg (the picture from above, over
-  // `cloud_m` when the cloud was kept) and (with an origin) footprints.geojson; flushes
-  // everything. Empty when it worked, otherwise why not.
+  // Closes the streams, then writes planes.json, buildings.json, map.wrl, top_view.svg (the
+  // picture from above, over `cloud_m` when the cloud was kept) and (with an origin)
+  // footprints.geojson, each whole or not at all. Empty when it worked, otherwise the first
+  // file that could not be written, named.
   [[nodiscard]] std::string finish(std::span<const msg::PlanePatch> planes,
                                    std::span<const buildings::Building> buildings,
                                    const std::optional<hal::GeodeticPoint>& origin,
@@ -78,6 +79,8 @@ class MapOutputs {
   std::vector<std::uint8_t> record_;
   hal::linux_backend::UdpSender udp_;
   void thin_path();
+  // Closes the streams written as the run went; the first that lost a write, named.
+  [[nodiscard]] std::string close_streams();
   std::vector<localize::Pose3> path_;  // every 10th pose (thinned when full), for map.wrl
   std::size_t path_stride_ = 1;        // path_ keeps every (10 x this)th pose
   std::uint64_t updates_ = 0;

@@ -6,10 +6,12 @@
 #include <charconv>
 #include <cmath>
 #include <cstring>
-#include <fstream>
 #include <iterator>
 #include <optional>
+#include <sstream>
 #include <system_error>
+
+#include "blockmap/hal/files.hpp"
 
 namespace blockmap::hal::cloud {
 namespace {
@@ -703,6 +705,13 @@ void read_pcd(std::span<const std::uint8_t> bytes, PointCloud& cloud) {
       fail("PCD binary_compressed size " + std::to_string(uncompressed) + " does not hold " +
            std::to_string(points) + " points");
     }
+    // LZF gives at most 88 bytes for 3 (a back reference of 264 bytes): a size beyond that
+    // is a lie the file tells, and is not allocated.
+    constexpr std::uint64_t kMaxLzfRatio = 88;
+    if (uncompressed > kMaxLzfRatio * std::uint64_t{compressed}) {
+      fail("PCD binary_compressed size " + std::to_string(uncompressed) + " cannot come from " +
+           std::to_string(compressed) + " compressed bytes (corrupt)");
+    }
     std::vector<std::uint8_t> raw(uncompressed);
     if (!lzf_decompress(body.subspan(8, compressed), raw)) {
       fail("PCD binary_compressed data is corrupt (LZF)");
@@ -820,20 +829,18 @@ PointCloud parse_point_cloud(std::span<const std::uint8_t> bytes, CloudFormat fo
   return cloud;
 }
 
-PointCloud read_point_cloud(const std::filesystem::path& path) {
+PointCloud read_point_cloud(const std::filesystem::path& path, std::size_t max_bytes) {
   const CloudFormat format = format_from_path(path);
-  std::ifstream file(path, std::ios::binary);
-  if (!file) {
-    throw CloudFileError(path.string() + ": cannot open: " +
-                         std::error_code(errno, std::generic_category()).message());
-  }
-  const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(file)),
-                                        std::istreambuf_iterator<char>());
-  if (file.bad()) {
-    throw CloudFileError(path.string() + ": read error");
+  std::string bytes;
+  try {
+    bytes = read_whole_file(path, max_bytes);
+  } catch (const FileError& error) {
+    throw CloudFileError(error.what());
   }
   try {
-    return parse_point_cloud(bytes, format);
+    return parse_point_cloud(std::span<const std::uint8_t>(
+                                 reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size()),
+                             format);
   } catch (const CloudFileError& error) {
     throw CloudFileError(path.string() + ": " + error.what());
   }
@@ -841,11 +848,7 @@ PointCloud read_point_cloud(const std::filesystem::path& path) {
 
 void write_ply(const std::filesystem::path& path, std::span<const Eigen::Vector3f> points_m,
                const Eigen::Vector3d& origin_m) {
-  std::ofstream file(path, std::ios::binary | std::ios::trunc);
-  if (!file) {
-    throw CloudFileError(path.string() + ": cannot create: " +
-                         std::error_code(errno, std::generic_category()).message());
-  }
+  std::ostringstream file(std::ios::binary);
   // Coordinates beyond float's millimetres go in as doubles with the origin added back.
   const bool doubles = origin_m != Eigen::Vector3d::Zero();
   const char* type = doubles ? "double" : "float";
@@ -871,9 +874,8 @@ void write_ply(const std::filesystem::path& path, std::span<const Eigen::Vector3
     file.write(reinterpret_cast<const char*>(record.data()),
                static_cast<std::streamsize>(record.size()));
   }
-  file.flush();
-  if (!file) {
-    throw CloudFileError(path.string() + ": write error");
+  if (std::string problem = write_whole_file(path, file.view()); !problem.empty()) {
+    throw CloudFileError(problem);
   }
 }
 

@@ -43,6 +43,7 @@ void read_buildings_table(TableReader& t, buildings::BuildingsConfig& c) {
 buildings::BuildingsConfig parse_buildings_config(std::string_view text, std::string_view source,
                                                   const buildings::BuildingsConfig& base) {
   const toml::table document = parse_document(text, source);
+  refuse_unknown_tables(document, source);
   TableReader root(document, std::string(source), "");
   buildings::BuildingsConfig c = base;
   if (auto table = root.table("buildings")) {

@@ -134,6 +134,7 @@ bool has_devices(std::string_view text, std::string_view source) {
 
 DaemonConfig parse_daemon_config(std::string_view text, std::string_view source) {
   const toml::table document = parse_document(text, source);
+  refuse_unknown_tables(document, source);
   TableReader root(document, std::string(source), "");
   DaemonConfig c;
   if (auto table = root.table("robot")) {

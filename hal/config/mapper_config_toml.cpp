@@ -173,6 +173,7 @@ void read_mapper_table(TableReader& t, pipeline::MapperConfig& c) {
 pipeline::MapperConfig parse_mapper_config(std::string_view text, std::string_view source,
                                            const pipeline::MapperConfig& base) {
   const toml::table document = parse_document(text, source);
+  refuse_unknown_tables(document, source);
   TableReader root(document, std::string(source), "");
   pipeline::MapperConfig c = base;
   if (auto table = root.table("planes")) {

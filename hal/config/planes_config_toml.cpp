@@ -85,6 +85,7 @@ void read_planes_table(TableReader& t, planes::PlanesConfig& c) {
 planes::PlanesConfig parse_planes_config(std::string_view text, std::string_view source,
                                          const planes::PlanesConfig& base) {
   const toml::table document = parse_document(text, source);
+  refuse_unknown_tables(document, source);
   TableReader root(document, std::string(source), "");
   planes::PlanesConfig c = base;
   if (auto table = root.table("planes")) {

@@ -1,11 +1,28 @@
 #include "toml_reader.hpp"
 
+#include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
-#include <fstream>
 #include <sstream>
 
+#include "blockmap/hal/files.hpp"
+
 namespace blockmap::hal::config {
+namespace {
+
+// Configuration files are a few kilobytes; a bigger one is not a configuration.
+constexpr std::size_t kMaxConfigBytes = std::size_t{1} << 20;
+
+std::string config_text(const std::filesystem::path& path) {
+  try {
+    return read_whole_file(path, kMaxConfigBytes);
+  } catch (const FileError& error) {
+    throw ConfigError(error.what());
+  }
+}
+
+}  // namespace
 
 toml::table parse_document(std::string_view text, std::string_view source) {
   try {
@@ -18,14 +35,26 @@ toml::table parse_document(std::string_view text, std::string_view source) {
   }
 }
 
-std::string read_config_file(const std::filesystem::path& path) {
-  std::ifstream file(path);
-  if (!file) {
-    throw ConfigError(path.string() + ": cannot open");
+void refuse_unknown_tables(const toml::table& document, std::string_view source) {
+  // Every table of config/README.md, "On the robot" and "Mapping".
+  static constexpr std::array<std::string_view, 14> kTables = {
+      "planes",     "buildings",    "window",    "projection",    "free_space",
+      "rigid_path", "loop_closure", "prior_map", "scan_matching", "registry",
+      "mapper",     "robot",        "devices",   "daemon"};
+  for (const auto& [key, node] : document) {
+    if (std::find(kTables.begin(), kTables.end(), key.str()) == kTables.end()) {
+      throw ConfigError(std::string(source) + ": " + std::string(key.str()) + ": " +
+                        (node.is_table() ? "unknown table" : "unknown key") +
+                        " (config/README.md lists the tables)");
+    }
+    if (!node.is_table()) {
+      throw ConfigError(std::string(source) + ": " + std::string(key.str()) + ": must be a table");
+    }
   }
-  std::ostringstream text;
-  text << file.rdbuf();
-  return text.str();
+}
+
+std::string read_config_file(const std::filesystem::path& path) {
+  return config_text(path);
 }
 
 std::string builtin_or_file_text(std::span<const std::string_view> names,
@@ -48,15 +77,8 @@ std::string builtin_or_file_text(std::span<const std::string_view> names,
                       "' (there " + (names.size() == 1 ? "is " : "are ") + known +
                       "; or give a .toml file)");
   }
-  std::ifstream file{std::string(name_or_path)};
-  if (!file) {
-    throw ConfigError("cannot open " + std::string(kind) + " file '" + std::string(name_or_path) +
-                      "'");
-  }
-  std::ostringstream text;
-  text << file.rdbuf();
   source = std::string(name_or_path);
-  return text.str();
+  return config_text(std::filesystem::path(name_or_path));
 }
 
 TableReader::TableReader(const toml::table& table, std::string source, std::string path)
@@ -127,8 +149,11 @@ std::int64_t TableReader::integer_or(std::string_view key, std::int64_t fallback
 
 std::size_t TableReader::capacity_or(std::string_view key, std::size_t fallback) {
   const std::int64_t value = integer_or(key, static_cast<std::int64_t>(fallback));
-  if (value < 1) {
-    fail(key, "must be >= 1");
+  // Far above any capacity a robot uses, and low enough that the bytes of two of them
+  // multiplied stay a number on a 64-bit machine.
+  constexpr std::int64_t kMaxCapacity = std::int64_t{1} << 24;
+  if (value < 1 || value > kMaxCapacity) {
+    fail(key, "must be 1 to 16777216");
   }
   return static_cast<std::size_t>(value);
 }

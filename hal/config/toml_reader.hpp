@@ -34,6 +34,10 @@ namespace blockmap::hal::config {
                                                std::string_view name_or_path, std::string_view kind,
                                                std::string& source);
 
+// Refuses a table or key at the top of a mapping configuration (`--config`) that no reader
+// knows: each command reads only its own tables of the file, so each also checks the rest.
+void refuse_unknown_tables(const toml::table& document, std::string_view source);
+
 class TableReader {
  public:
   // `path` is the table's key path for messages ("" for the document, "buildings[2]").

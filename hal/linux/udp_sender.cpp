@@ -16,11 +16,27 @@ UdpSender::~UdpSender() {
   }
 }
 
-std::string UdpSender::open(const std::string& destination) {
+std::string UdpSender::check_destination(const std::string& destination) {
   const std::size_t colon = destination.rfind(':');
   if (colon == std::string::npos || colon == 0 || colon + 1 == destination.size()) {
     return "UDP destination '" + destination + "' is not HOST:PORT";
   }
+  const std::string port = destination.substr(colon + 1);
+  constexpr std::size_t kMaxPortDigits = 5;
+  const bool digits =
+      port.size() <= kMaxPortDigits && port.find_first_not_of("0123456789") == std::string::npos;
+  constexpr int kMaxPort = 65535;
+  if (!digits || std::stoi(port) < 1 || std::stoi(port) > kMaxPort) {
+    return "UDP destination '" + destination + "': the port must be 1 to 65535";
+  }
+  return {};
+}
+
+std::string UdpSender::open(const std::string& destination) {
+  if (std::string problem = check_destination(destination); !problem.empty()) {
+    return problem;
+  }
+  const std::size_t colon = destination.rfind(':');
   const std::string host = destination.substr(0, colon);
   const std::string port = destination.substr(colon + 1);
   addrinfo hints{};

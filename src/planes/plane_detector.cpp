@@ -48,6 +48,11 @@ MeasuredGrid measured_orientation_grid(const PlanesConfig& config) {
       cells *
       (sizeof(Eigen::Vector3f) + 5 * sizeof(std::uint32_t) + kernel * sizeof(std::uint32_t) +
        OrientationGrid::kMaxNeighbours * sizeof(OrientationGrid::Neighbour) + 1);
+  // Past this the bound itself is the answer: no budget takes it, and measuring would take it.
+  constexpr double kMaxMeasuredBytes = 256.0 * 1024.0 * 1024.0;
+  if (bound > kMaxMeasuredBytes) {
+    return {bound, cells};
+  }
   Arena scratch(static_cast<std::size_t>(bound) + (std::size_t{1} << 12));
   OrientationGrid grid;
   grid.init(scratch, config.angle_bin_deg, config.orientation_mode,
@@ -131,9 +136,12 @@ std::size_t PlaneDetector::arena_budget_bytes(const PlanesConfig& config) noexce
                              (2 * sizeof(std::uint32_t) + sizeof(Eigen::Vector3f)) +
                          static_cast<double>(config.max_planes_per_section) * sizeof(HoughPeak);
   // Alignment padding: a few dozen allocations of at most 64 bytes each.
-  return static_cast<std::size_t>(grid.bytes + voxels + sections + accumulator + merger + cache +
-                                  section) +
-         (std::size_t{1} << 16);
+  const double bytes =
+      grid.bytes + voxels + sections + accumulator + merger + cache + section + 65536.0;
+  // More than a quarter of the address space is said as that quarter: no budget takes it,
+  // and the mapper's sum of its stages' bytes stays a number.
+  constexpr std::size_t kMaxBytes = std::numeric_limits<std::size_t>::max() / 4;
+  return bytes < static_cast<double>(kMaxBytes) ? static_cast<std::size_t>(bytes) : kMaxBytes;
 }
 
 void PlaneDetector::clear() noexcept {

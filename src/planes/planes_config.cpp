@@ -5,6 +5,9 @@
 namespace blockmap::planes {
 namespace {
 
+// A refit converges in two or three; more is a typing error that would run for hours.
+constexpr std::uint32_t kMaxRefineIterations = 100;
+
 bool whole_multiple(double a, double b) {
   const double ratio = a / b;
   return ratio >= 1.0 - 1e-9 && std::abs(ratio - std::round(ratio)) < 1e-6;
@@ -59,6 +62,9 @@ std::string validate_votes(const PlanesConfig& c) {
 std::string validate_fitting(const PlanesConfig& c) {
   if (!(c.max_inlier_distance_m >= c.inlier_distance_m)) {
     return "max_inlier_distance_m must be at least inlier_distance_m";
+  }
+  if (c.refine_iterations < 1 || c.refine_iterations > kMaxRefineIterations) {
+    return "refine_iterations must be in [1, 100]";
   }
   if (!(c.inlier_distance_m > 0.0) || !(c.inlier_angle_deg > 0.0 && c.inlier_angle_deg <= 90.0)) {
     return "inlier_distance_m must be > 0 and inlier_angle_deg in (0, 90]";

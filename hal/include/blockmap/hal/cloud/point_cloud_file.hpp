@@ -45,7 +45,10 @@ struct PointCloud {
 
 // Reads and parses a file. Throws CloudFileError (including for I/O errors), whose message
 // starts with the file name.
-[[nodiscard]] PointCloud read_point_cloud(const std::filesystem::path& path);
+// Files bigger than `max_bytes` are refused, before their bytes are parsed.
+inline constexpr std::size_t kMaxCloudFileBytes = std::size_t{1} << 30;
+[[nodiscard]] PointCloud read_point_cloud(const std::filesystem::path& path,
+                                          std::size_t max_bytes = kMaxCloudFileBytes);
 
 // Writes points (relative to origin_m) as a binary little-endian PLY of x, y, z: floats, or
 // doubles with the origin added back when it is not zero. Throws CloudFileError.

@@ -20,6 +20,9 @@ class UdpSender {
   UdpSender(const UdpSender&) = delete;
   UdpSender& operator=(const UdpSender&) = delete;
 
+  // Whether `destination` reads as HOST:PORT with a port of 1 to 65535, before any lookup:
+  // empty when it does, otherwise why not.
+  [[nodiscard]] static std::string check_destination(const std::string& destination);
   // `destination` is HOST:PORT (a name or an IPv4 address). Empty when it worked, otherwise
   // why not.
   [[nodiscard]] std::string open(const std::string& destination);
