@@ -57,30 +57,39 @@ bool append_hex(const std::string& text, std::vector<std::uint8_t>& stream) {
   return true;
 }
 
-// The joined "_source.layers.tcp.tcp.payload" of every entry; false with a message on `err`.
-bool payloads_of_json(const Capture& capture, std::vector<std::uint8_t>& stream,
-                      std::ostream& err) {
-  const Json entries = Json::parse(capture.bytes.begin(), capture.bytes.end(), nullptr, false);
-  if (entries.is_discarded() || !entries.is_array()) {
-    err << "blockmap: '" << capture.path << "' starts with '[' but is not a JSON list\n";
-    return false;
+// The joined "tcp.payload" strings of the list, in order. They are found in the text itself,
+// not through a JSON parser, so that a damaged byte costs only the segment it falls in: a
+// payload that is not colon-separated hex is left out and counted.
+struct Payloads {
+  std::size_t segments = 0;
+  std::size_t damaged = 0;
+  std::size_t first_damaged = 0;  // 1-based, among the segments
+};
+
+Payloads payloads_of_json(const Capture& capture, std::vector<std::uint8_t>& stream) {
+  const std::string_view text(reinterpret_cast<const char*>(capture.bytes.data()),
+                              capture.bytes.size());
+  constexpr std::string_view kKey = "\"tcp.payload\"";
+  Payloads payloads;
+  std::vector<std::uint8_t> piece;
+  for (std::size_t at = text.find(kKey); at != std::string_view::npos; at = text.find(kKey, at)) {
+    ++payloads.segments;
+    at = text.find_first_not_of(" \t\r\n", at + kKey.size());
+    const bool colon = at != std::string_view::npos && text[at] == ':';
+    const std::size_t open = colon ? text.find_first_not_of(" \t\r\n", at + 1) : at;
+    const bool quoted = colon && open != std::string_view::npos && text[open] == '"';
+    const std::size_t close = quoted ? text.find('"', open + 1) : std::string_view::npos;
+    piece.clear();
+    if (close == std::string_view::npos ||
+        !append_hex(std::string(text.substr(open + 1, close - open - 1)), piece)) {
+      payloads.first_damaged = payloads.damaged == 0 ? payloads.segments : payloads.first_damaged;
+      ++payloads.damaged;
+      continue;
+    }
+    stream.insert(stream.end(), piece.begin(), piece.end());
+    at = close + 1;
   }
-  for (const Json& entry : entries) {
-    const Json* node = &entry;
-    for (const char* key : {"_source", "layers", "tcp", "tcp.payload"}) {
-      const auto found = node->is_object() ? node->find(key) : node->end();
-      node = (node->is_object() && found != node->end()) ? &*found : nullptr;
-      if (node == nullptr) break;
-    }
-    if (node == nullptr || !node->is_string()) {
-      continue;  // a segment without payload (a pure ACK)
-    }
-    if (!append_hex(node->get_ref<const std::string&>(), stream)) {
-      err << "blockmap: '" << capture.path << "': a tcp.payload is not colon-separated hex\n";
-      return false;
-    }
-  }
-  return true;
+  return payloads;
 }
 
 std::string payload_text(const cola::Telegram& telegram) {
@@ -145,8 +154,9 @@ void print_step(const cola::Decoder::Step& step, const Capture& capture, std::os
 int decode_cola(const Capture& capture, std::ostream& out, std::ostream& err) {
   std::vector<std::uint8_t> joined;
   const bool json = looks_like_json(capture.bytes);
-  if (json && !payloads_of_json(capture, joined, err)) {
-    return kExitFailure;
+  Payloads payloads;
+  if (json) {
+    payloads = payloads_of_json(capture, joined);
   }
   const std::vector<std::uint8_t>& bytes = json ? joined : capture.bytes;
   // Offline decoding may allocate: the decoder lives on the heap, not on a small stack.
@@ -173,7 +183,15 @@ int decode_cola(const Capture& capture, std::ostream& out, std::ostream& err) {
   err << "cola: " << decoder->telegrams_decoded() << " telegrams decoded ("
       << decoder->scans_decoded() << " scans)";
   print_drops(err, decoder->drops());
-  err << ", " << decoder->dropped_bytes() << " bytes dropped\n";
+  err << ", " << decoder->dropped_bytes() << " bytes dropped";
+  if (json) {
+    err << "; " << payloads.segments << " TCP segments, " << payloads.damaged
+        << " damaged and left out";
+    if (payloads.damaged > 0) {
+      err << " (the first: segment " << payloads.first_damaged << ")";
+    }
+  }
+  err << '\n';
   return kExitOk;
 }
 

@@ -198,6 +198,15 @@ class TimeMerge {
   TimestampNs last_ns_ = 0;
 };
 
+// "; N times off both neighbours (given the time before), M clock steps or gaps kept"
+void report_times(std::ostream& err, const char* what, const hal::replay::RecordedTimes& times) {
+  if (times.faults() > 0 || times.steps() > 0) {
+    err << "; " << what << " times: " << times.faults()
+        << " off both neighbours (given the time before), " << times.steps()
+        << " steps or gaps of over 0.25 s kept";
+  }
+}
+
 int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
   const fs::path dir(options.dir);
   if (!fs::is_directory(dir)) {
@@ -355,6 +364,7 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
     err << "; " << run->bus().lines_rejected() << " unreadable CAN log lines (first: line "
         << run->bus().first_rejected_line() << ")";
   }
+  report_times(err, "CAN log", run->bus().times());
   if (fixes->frame()) {
     char origin_text[96];
     std::snprintf(origin_text, sizeof origin_text, "; origin %.7f,%.7f,%.2f",
@@ -369,6 +379,14 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
   bool damaged = false;
   for (std::size_t i = 0; i < run->laser_count(); ++i) {
     const hal::replay::ByteLogFileStream& log = run->laser_log(i);
+    if (log.skipped_places() > 0 || log.times().faults() > 0 || log.times().steps() > 0) {
+      err << "replay: warning: laser_" << robot.lasers[i].name
+          << ".bytelog: " << log.skipped_places() << " damaged places skipped ("
+          << log.skipped_bytes() << " bytes; the first at byte " << log.first_skip_offset() << ": "
+          << hal::protocol::byte_log::to_string(log.first_skip()) << ")";
+      report_times(err, "its", log.times());
+      err << '\n';
+    }
     if (log.damage() != hal::protocol::byte_log::ParseError::kNone) {
       err << "blockmap: replay: laser_" << robot.lasers[i].name << ".bytelog is damaged at byte "
           << log.damage_offset() << " (" << hal::protocol::byte_log::to_string(log.damage())

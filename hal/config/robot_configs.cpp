@@ -11,6 +11,7 @@ devices::SegwayBaseConfig segway_base_config_for(const RobotSpec& robot) {
   devices::SegwayBaseConfig config;
   config.rmp.model = robot.base.model;
   config.rmp.yaw_sign = robot.base.yaw_sign;
+  config.track_m = robot.base.track_m;
   return config;
 }
 

@@ -1,6 +1,8 @@
 #include "blockmap/hal/devices/segway_base.hpp"
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 
 namespace blockmap::hal::devices {
 
@@ -31,6 +33,10 @@ IoStatus SegwayBase::poll(TimestampNs timeout_ns) {
       continue;
     }
     status_ = step.cycle->status;
+    if (!plausible(*step.cycle)) {
+      implausible_.increment();
+      continue;
+    }
     // Both samples or neither: the localizer pairs them by stamp.
     if (odometry_.try_push(step.cycle->odometry) && imu_.try_push(step.cycle->imu)) {
       published_.increment();
@@ -39,6 +45,39 @@ IoStatus SegwayBase::poll(TimestampNs timeout_ns) {
     }
   }
   return status;
+}
+
+bool SegwayBase::plausible(const rmp::StatusCycle& cycle) noexcept {
+  const msg::OdometrySample& odometry = cycle.odometry;
+  const msg::ImuSample& imu = cycle.imu;
+  const auto within = [](double value, double limit) { return std::abs(value) <= limit; };
+  bool ok = within(imu.yaw_rate_radps, config_.max_rate_radps) &&
+            within(imu.pitch_rate_radps, config_.max_rate_radps) &&
+            within(imu.roll_rate_radps, config_.max_rate_radps) &&
+            within(imu.pitch_rad, config_.max_tilt_rad) &&
+            within(imu.roll_rad, config_.max_tilt_rad) &&
+            within(imu.yaw_rate_radps -
+                       (odometry.right_wheel_velocity_mps - odometry.left_wheel_velocity_mps) /
+                           config_.track_m,
+                   config_.max_wheel_gyro_disagreement_radps);
+  if (ok && have_last_ && refused_in_a_row_ < config_.refusals_before_restart) {
+    constexpr double kMinStepS = 0.01;  // the RMP's 100 Hz
+    const double dt_s = std::max(
+        seconds_from_ns(odometry.header.stamp_ns - last_.odometry.header.stamp_ns), kMinStepS);
+    const double travel_m = config_.max_speed_mps * dt_s;
+    const msg::OdometrySample& before = last_.odometry;
+    ok = within(odometry.left_wheel_distance_m - before.left_wheel_distance_m, travel_m) &&
+         within(odometry.right_wheel_distance_m - before.right_wheel_distance_m, travel_m) &&
+         within(odometry.fore_aft_distance_m - before.fore_aft_distance_m, travel_m);
+  }
+  if (!ok) {
+    ++refused_in_a_row_;
+    return false;
+  }
+  last_ = cycle;
+  have_last_ = true;
+  refused_in_a_row_ = 0;
+  return true;
 }
 
 }  // namespace blockmap::hal::devices

@@ -1,5 +1,8 @@
 #include "blockmap/hal/replay/log_ports.hpp"
 
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <array>
 #include <cerrno>
@@ -25,10 +28,95 @@ LogFile::~LogFile() {
 
 CandumpFileBus::CandumpFileBus(const std::string& path) : file_(path) {}
 
+std::optional<TimestampNs> RecordedTimes::judge(TimestampNs stamp_ns,
+                                                std::span<const TimestampNs> next_ns) noexcept {
+  if (!last_ns_) {
+    if (!most_follow(stamp_ns, next_ns)) {
+      ++faults_;
+      return std::nullopt;
+    }
+    last_ns_ = stamp_ns;
+    return stamp_ns;
+  }
+  if (follows(*last_ns_, stamp_ns)) {
+    // Near the last, but off the next that the last leads to: a smaller jump, still a fault.
+    if (!next_ns.empty() && !follows(stamp_ns, next_ns[0]) && follows(*last_ns_, next_ns[0])) {
+      ++faults_;
+      return *last_ns_;
+    }
+    last_ns_ = stamp_ns;
+    return stamp_ns;
+  }
+  if (next_ns.size() < kConfirming || !kept(stamp_ns, next_ns)) {
+    ++faults_;
+    return *last_ns_;
+  }
+  ++steps_;
+  last_ns_ = stamp_ns;
+  return stamp_ns;
+}
+
+bool RecordedTimes::most_follow(TimestampNs stamp_ns,
+                                std::span<const TimestampNs> next_ns) noexcept {
+  std::size_t following = 0;
+  for (std::size_t i = 0; i < next_ns.size(); ++i) {
+    TimestampNs gap_ns = 0;
+    const auto reach_ns = static_cast<TimestampNs>(i + 1) * kMaxGapNs;
+    if (!__builtin_sub_overflow(next_ns[i], stamp_ns, &gap_ns) && gap_ns >= -kMaxBackNs &&
+        gap_ns <= reach_ns) {
+      ++following;
+    }
+  }
+  return 2 * following >= next_ns.size();
+}
+
+bool RecordedTimes::kept(TimestampNs stamp_ns, std::span<const TimestampNs> next_ns) noexcept {
+  TimestampNs before_ns = stamp_ns;
+  for (const TimestampNs after_ns : next_ns) {
+    if (!follows(before_ns, after_ns)) {
+      return false;
+    }
+    before_ns = after_ns;
+  }
+  return true;
+}
+
+bool RecordedTimes::follows(TimestampNs earlier_ns, TimestampNs later_ns) noexcept {
+  TimestampNs gap_ns = 0;
+  if (__builtin_sub_overflow(later_ns, earlier_ns, &gap_ns)) {
+    return false;
+  }
+  return gap_ns >= -kMaxBackNs && gap_ns <= kMaxGapNs;
+}
+
 CanReceiveResult CandumpFileBus::do_receive(CanFrame& frame, TimestampNs /*timeout_ns*/) {
   if (!file_.ok()) {
     return {IoStatus::kClosed, 0};
   }
+  while (true) {
+    while (!ended_ && ahead_count_ < ahead_.size()) {
+      ended_ = !read_frame(ahead_[ahead_count_], ahead_ns_[ahead_count_]);
+      ahead_count_ += ended_ ? 0 : 1;
+    }
+    if (ahead_count_ == 0) {
+      return {IoStatus::kClosed, 0};
+    }
+    const CanFrame current = ahead_[0];
+    const std::optional<TimestampNs> judged = times_.judge(
+        ahead_ns_[0], std::span<const TimestampNs>(ahead_ns_).subspan(1, ahead_count_ - 1));
+    std::copy(ahead_.begin() + 1, ahead_.begin() + static_cast<std::ptrdiff_t>(ahead_count_),
+              ahead_.begin());
+    std::copy(ahead_ns_.begin() + 1, ahead_ns_.begin() + static_cast<std::ptrdiff_t>(ahead_count_),
+              ahead_ns_.begin());
+    --ahead_count_;
+    if (judged) {
+      frame = current;
+      return {IoStatus::kOk, *judged};
+    }
+  }
+}
+
+bool CandumpFileBus::read_frame(CanFrame& frame, TimestampNs& stamp_ns) {
   while (std::fgets(line_.data(), static_cast<int>(line_.size()), file_.get()) != nullptr) {
     ++lines_;
     std::string_view text(line_.data());
@@ -59,9 +147,10 @@ CanReceiveResult CandumpFileBus::do_receive(CanFrame& frame, TimestampNs /*timeo
       continue;
     }
     frame = record.frame;
-    return {IoStatus::kOk, record.stamp_ns};
+    stamp_ns = record.stamp_ns;
+    return true;
   }
-  return {IoStatus::kClosed, 0};
+  return false;
 }
 
 IoStatus CandumpFileBus::do_send(const CanFrame& /*frame*/) {
@@ -109,53 +198,201 @@ ByteLogFileStream::ByteLogFileStream(const std::string& path) : file_(path) {
     error_ = file_.error();
     return;
   }
+  fd_ = ::fileno(file_.get());
+  struct stat status {};
   std::array<std::uint8_t, 8> magic{};
-  if (std::fread(magic.data(), 1, magic.size(), file_.get()) != magic.size() ||
+  if (::fstat(fd_, &status) != 0 || !S_ISREG(status.st_mode) ||
+      ::pread(fd_, magic.data(), magic.size(), 0) != static_cast<ssize_t>(magic.size()) ||
       !protocol::byte_log::has_magic(magic)) {
     error_ = path + ": not a byte log (it does not start with BMBYTES1)";
     return;
   }
+  size_ = static_cast<std::uint64_t>(status.st_size);
   offset_ = magic.size();
-  record_.reserve(protocol::byte_log::kRecordHeaderBytes + 4096);
+  constexpr std::size_t kReadAheadBytes = 1 << 16;
+  read_ahead_.resize(kReadAheadBytes);
+  record_.reserve(4096);
+}
+
+bool ByteLogFileStream::read_at(std::uint64_t offset, std::span<std::uint8_t> out) const {
+  if (out.size() > read_ahead_.size()) {
+    return ::pread(fd_, out.data(), out.size(), static_cast<off_t>(offset)) ==
+           static_cast<ssize_t>(out.size());
+  }
+  if (offset < ahead_from_ || offset + out.size() > ahead_from_ + ahead_bytes_) {
+    const ssize_t got =
+        ::pread(fd_, read_ahead_.data(), read_ahead_.size(), static_cast<off_t>(offset));
+    ahead_from_ = offset;
+    ahead_bytes_ = got > 0 ? static_cast<std::size_t>(got) : 0;
+    if (ahead_bytes_ < out.size()) {
+      return false;
+    }
+  }
+  std::copy_n(read_ahead_.begin() + static_cast<std::ptrdiff_t>(offset - ahead_from_), out.size(),
+              out.begin());
+  return true;
+}
+
+ByteLogFileStream::Header ByteLogFileStream::header_at(std::uint64_t offset) const {
+  namespace byte_log = protocol::byte_log;
+  Header header;
+  std::array<std::uint8_t, byte_log::kRecordHeaderBytes> bytes{};
+  if (offset >= size_) {
+    header.error = byte_log::ParseError::kEnd;
+    return header;
+  }
+  if (size_ - offset < bytes.size() || !read_at(offset, bytes)) {
+    header.error = byte_log::ParseError::kTruncatedHeader;
+    return header;
+  }
+  byte_log::Reader reader(bytes);
+  byte_log::Record record;
+  header.error = reader.next(record);
+  if (header.error == byte_log::ParseError::kTruncatedData ||
+      header.error == byte_log::ParseError::kNone) {
+    // The codec saw the header alone: the bytes lie in the file, if it is long enough.
+    header.fields.stamp_ns =
+        static_cast<TimestampNs>(protocol::read_le(std::span<const std::uint8_t>(bytes).first(8)));
+    header.fields.length = static_cast<std::uint32_t>(
+        protocol::read_le(std::span<const std::uint8_t>(bytes).subspan(8, 4)));
+    header.fields.direction = static_cast<byte_log::Direction>(bytes[12]);
+    const bool whole = size_ - offset - bytes.size() >= header.fields.length;
+    header.error = whole ? byte_log::ParseError::kNone : byte_log::ParseError::kTruncatedData;
+  }
+  return header;
+}
+
+bool ByteLogFileStream::record_starts_at(std::uint64_t offset,
+                                         std::optional<TimestampNs> near_ns) const {
+  namespace byte_log = protocol::byte_log;
+  const Header header = header_at(offset);
+  if (header.error != byte_log::ParseError::kNone ||
+      (near_ns && !near(*near_ns, header.fields.stamp_ns))) {
+    return false;
+  }
+  const std::uint64_t next = offset + byte_log::kRecordHeaderBytes + header.fields.length;
+  if (next == size_) {
+    return true;
+  }
+  // A next record the file's end cuts short still says this one's length was right.
+  const Header after = header_at(next);
+  if (after.error == byte_log::ParseError::kTruncatedHeader ||
+      after.error == byte_log::ParseError::kTruncatedData) {
+    return !near_ns;
+  }
+  return after.error == byte_log::ParseError::kNone &&
+         (!near_ns || near(header.fields.stamp_ns, after.fields.stamp_ns));
+}
+
+bool ByteLogFileStream::near(TimestampNs before_ns, TimestampNs stamp_ns) noexcept {
+  // Where to look again after damage: a device's silence up to a minute, a log written a
+  // little out of order.
+  constexpr TimestampNs kMaxAfterNs = 60 * kNanosecondsPerSecond;
+  constexpr TimestampNs kMaxBeforeNs = kNanosecondsPerSecond;
+  TimestampNs gap_ns = 0;
+  return !__builtin_sub_overflow(stamp_ns, before_ns, &gap_ns) && gap_ns >= -kMaxBeforeNs &&
+         gap_ns <= kMaxAfterNs;
+}
+
+std::optional<std::uint64_t> ByteLogFileStream::next_record_start(std::uint64_t from) {
+  namespace byte_log = protocol::byte_log;
+  // The cheap test first, on the bytes in memory: a direction of 0 or 1 and three zeros.
+  constexpr std::size_t kWindowBytes = 1 << 16;
+  window_.resize(kWindowBytes);
+  while (from + byte_log::kRecordHeaderBytes <= size_) {
+    const ssize_t got = ::pread(fd_, window_.data(), window_.size(), static_cast<off_t>(from));
+    if (got < static_cast<ssize_t>(byte_log::kRecordHeaderBytes)) {
+      break;
+    }
+    const auto usable = static_cast<std::size_t>(got) - byte_log::kRecordHeaderBytes + 1;
+    for (std::size_t i = 0; i < usable; ++i) {
+      if (window_[i + 12] <= 1 && window_[i + 13] == 0 && window_[i + 14] == 0 &&
+          window_[i + 15] == 0 && record_starts_at(from + i, last_good_ns_)) {
+        return from + i;
+      }
+    }
+    from += usable;
+  }
+  return std::nullopt;
+}
+
+bool ByteLogFileStream::resynchronise(protocol::byte_log::ParseError why) {
+  const std::optional<std::uint64_t> start = next_record_start(offset_ + 1);
+  if (!start) {
+    ended_ = true;
+    return false;
+  }
+  if (skipped_places_ == 0) {
+    first_skip_offset_ = offset_;
+    first_skip_ = why;
+  }
+  ++skipped_places_;
+  skipped_bytes_ += *start - offset_;
+  offset_ = *start;
+  return true;
+}
+
+bool ByteLogFileStream::reads_well_before_damage(std::uint64_t offset, std::uint64_t next) {
+  // The record reads well but the one after it does not: either its length is wrong, and a
+  // record starts inside its bytes, or the damage is the next one's.
+  const std::optional<std::uint64_t> start = next_record_start(offset + 1);
+  return !start || *start > next;
 }
 
 bool ByteLogFileStream::load_next() {
   namespace byte_log = protocol::byte_log;
   while (!ended_) {
-    record_.resize(byte_log::kRecordHeaderBytes);
-    const std::size_t got = std::fread(record_.data(), 1, record_.size(), file_.get());
-    if (got == 0) {
-      ended_ = true;  // the end of the log
+    const Header header = header_at(offset_);
+    if (header.error == byte_log::ParseError::kEnd) {
+      ended_ = true;
       return false;
     }
-    // Read the record's bytes as its header says (at most kMaxRecordBytes), then let the
-    // codec check the whole record.
-    std::size_t length = 0;
-    if (got == record_.size()) {
-      // Four bytes: the value fits any size_t; past the maximum the codec refuses it.
-      length = static_cast<std::size_t>(std::min<std::uint64_t>(
-          protocol::read_le(std::span<const std::uint8_t>(record_).subspan(8, 4)),
-          std::uint64_t{byte_log::kMaxRecordBytes} + 1));
-      record_.resize(byte_log::kRecordHeaderBytes + length);
-      const std::size_t data =
-          std::fread(record_.data() + byte_log::kRecordHeaderBytes, 1, length, file_.get());
-      record_.resize(byte_log::kRecordHeaderBytes + data);
-    } else {
-      record_.resize(got);
+    const std::uint64_t next = offset_ + byte_log::kRecordHeaderBytes + header.fields.length;
+    if (!record_starts_at(offset_, std::nullopt) &&
+        (header.error != byte_log::ParseError::kNone || !reads_well_before_damage(offset_, next))) {
+      const std::uint64_t at = offset_;
+      // A header that reads well with none after it: the record after it tells why.
+      const byte_log::ParseError why =
+          header.error != byte_log::ParseError::kNone
+              ? header.error
+              : header_at(offset_ + byte_log::kRecordHeaderBytes + header.fields.length).error;
+      if (!resynchronise(why)) {
+        // Nothing reads well after it: the log ends damaged here.
+        damage_ = header.error == byte_log::ParseError::kNone ? byte_log::ParseError::kTruncatedData
+                                                              : header.error;
+        damage_offset_ = at;
+        return false;
+      }
+      continue;
     }
-    byte_log::Reader reader(record_);
-    byte_log::Record record;
-    const byte_log::ParseError error = reader.next(record);
-    if (error != byte_log::ParseError::kNone) {
-      damage_ = error;
+    // The times of the records after it, as far as they read well.
+    std::array<TimestampNs, RecordedTimes::kConfirming> next_ns{};
+    std::size_t known = 0;
+    for (std::uint64_t at = next; known < next_ns.size(); ++known) {
+      const Header after = header_at(at);
+      if (after.error != byte_log::ParseError::kNone) {
+        break;
+      }
+      next_ns[known] = after.fields.stamp_ns;
+      at += byte_log::kRecordHeaderBytes + after.fields.length;
+    }
+    record_.resize(header.fields.length);
+    const bool read = read_at(offset_ + byte_log::kRecordHeaderBytes, record_);
+    if (!read) {
+      damage_ = byte_log::ParseError::kTruncatedData;
       damage_offset_ = offset_;
       ended_ = true;
       return false;
     }
-    offset_ += record_.size();
-    if (record.header.direction == byte_log::Direction::kFromDevice && record.header.length > 0) {
-      stamp_ns_ = record.header.stamp_ns;
-      length_ = record.header.length;
+    offset_ = next;
+    const std::optional<TimestampNs> stamp_ns =
+        times_.judge(header.fields.stamp_ns, std::span<const TimestampNs>(next_ns).first(known));
+    if (stamp_ns) {
+      last_good_ns_ = *stamp_ns;
+    }
+    if (stamp_ns && header.fields.direction == byte_log::Direction::kFromDevice &&
+        !record_.empty()) {
+      stamp_ns_ = *stamp_ns;
       consumed_ = 0;
       return true;
     }
@@ -167,15 +404,13 @@ ReadResult ByteLogFileStream::do_read(std::span<std::uint8_t> buffer, TimestampN
   if (!ok()) {
     return {IoStatus::kClosed, 0, 0};
   }
-  if (consumed_ == length_ && !load_next()) {
+  if (consumed_ == record_.size() && !load_next()) {
     return {
         damage_ != protocol::byte_log::ParseError::kNone ? IoStatus::kIoError : IoStatus::kClosed,
         0, 0};
   }
-  const std::size_t n = std::min(buffer.size(), length_ - consumed_);
-  std::copy_n(record_.begin() +
-                  static_cast<std::ptrdiff_t>(protocol::byte_log::kRecordHeaderBytes + consumed_),
-              n, buffer.begin());
+  const std::size_t n = std::min(buffer.size(), record_.size() - consumed_);
+  std::copy_n(record_.begin() + static_cast<std::ptrdiff_t>(consumed_), n, buffer.begin());
   consumed_ += n;
   return {IoStatus::kOk, n, stamp_ns_};
 }

@@ -12,8 +12,6 @@
 #include <chrono>
 #include <csignal>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -37,13 +35,6 @@ struct ProcessResult {
   std::string out;
   std::string err;
 };
-
-inline std::string read_text(const std::filesystem::path& path) {
-  std::ifstream file(path, std::ios::binary);
-  std::ostringstream text;
-  text << file.rdbuf();
-  return text.str();
-}
 
 // Reads what is there on `fd` into `text`; false at its end.
 inline bool drain(int fd, std::string& text) {

@@ -13,6 +13,7 @@
 
 #include "blockmap_process.hpp"
 #include "scratch.hpp"
+#include "test_data.hpp"
 
 namespace blockmap::testing {
 namespace {

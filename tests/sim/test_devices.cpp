@@ -155,9 +155,10 @@ struct SegwayRig {
   explicit SegwayRig(const sim::LoopbackCanConfig& bus_config)
       : bus(clock, bus_config, pending, sent), base(bus, odometry, imu, SegwayBaseConfig{}) {}
 
-  void send_group(double fore_aft_m) {
+  void send_group(double fore_aft_m, double yaw_rate_radps = 0.0) {
     protocol::segway_rmp::StatusCycle cycle;
     cycle.odometry.fore_aft_distance_m = fore_aft_m;
+    cycle.imu.yaw_rate_radps = yaw_rate_radps;
     cycle.odometry.servo_frame_count = servo_frames++;
     cycle.imu.pitch_rad = 0.05;
     const auto frames = protocol::segway_rmp::encode_status(cycle, protocol::segway_rmp::Config{});
@@ -227,6 +228,46 @@ TEST(SegwayBase, LostFramesCostOnlyTheirGroupAndBusOffIsReported) {
   EXPECT_GE(rig.base.samples_published() + incomplete, 190u) << "only a lost 0x407 hides a group";
   rig.bus.set_bus_off(true);
   EXPECT_EQ(rig.base.poll(0), IoStatus::kDeviceLost);
+}
+
+TEST(SegwayBase, AGroupNoRmpCouldSendIsNotPublished) {
+  // Given a base driving 1 cm per group whose log has two damaged groups: a yaw rate of 100
+  // rad/s, and a distance 3 m on in 10 ms
+  SegwayRig rig(sim::LoopbackCanConfig{});
+  (void)rig.base.install_filters();
+  std::vector<double> published;
+  for (int group = 0; group < 20; ++group) {
+    const double fore_aft_m = 0.01 * group + (group == 12 ? 3.0 : 0.0);
+    rig.send_group(fore_aft_m, group == 5 ? 100.0 : 0.1);
+    (void)rig.clock.advance_ns(10'000'000);
+    (void)rig.base.poll(0);
+    for (msg::OdometrySample sample; rig.odometry.try_pop(sample);) {
+      published.push_back(sample.fore_aft_distance_m);
+    }
+  }
+  // Then those two are left out and counted, and the rest published as they came
+  EXPECT_EQ(rig.base.groups_implausible(), 2u);
+  ASSERT_EQ(published.size(), 18u);
+  EXPECT_NEAR(published[5], 0.06, 1e-4);
+  EXPECT_NEAR(published[11], 0.13, 1e-4);
+}
+
+TEST(SegwayBase, AfterThreeRefusalsInARowTheNextGroupIsTheNewStart) {
+  // Given a base whose integrators reset (the distance drops from 5 m to 0)
+  SegwayRig rig(sim::LoopbackCanConfig{});
+  (void)rig.base.install_filters();
+  std::size_t published = 0;
+  for (int group = 0; group < 20; ++group) {
+    rig.send_group(group < 10 ? 5.0 + 0.01 * group : 0.01 * (group - 10));
+    (void)rig.clock.advance_ns(10'000'000);
+    (void)rig.base.poll(0);
+    for (msg::OdometrySample sample; rig.odometry.try_pop(sample);) {
+      ++published;
+    }
+  }
+  // Then three groups are refused and the base goes on from the fourth
+  EXPECT_EQ(rig.base.groups_implausible(), 3u);
+  EXPECT_EQ(published, 17u);
 }
 
 }  // namespace

@@ -5,7 +5,9 @@
 #include <array>
 #include <filesystem>
 #include <fstream>
+#include <span>
 #include <string>
+#include <vector>
 
 #include "blockmap/hal/replay/log_ports.hpp"
 
@@ -83,6 +85,129 @@ TEST(FileByteStream, ReadsTheFileInPiecesThenCloses) {
   EXPECT_EQ(back, text);
   const std::array<std::uint8_t, 1> byte{0};
   EXPECT_EQ(stream.write(byte, 0).status, IoStatus::kInvalidArgument);
+  fs::remove(path);
+}
+
+TEST(RecordedTimes, ATimeOffBothNeighboursTakesTheLastGoodOne) {
+  RecordedTimes times;
+  constexpr TimestampNs kMs = 1'000'000;
+  const std::array<TimestampNs, 3> after = {30 * kMs, 40 * kMs, 50 * kMs};
+  EXPECT_EQ(times.judge(10 * kMs, std::span(after).first(3)), 10 * kMs);
+  // A digit of the second one's time damaged: 1e8 s ahead, the next ones where they were.
+  EXPECT_EQ(times.judge(100'000'000 * kNanosecondsPerSecond, std::span(after)), 10 * kMs);
+  EXPECT_EQ(times.judge(30 * kMs, std::span(after).subspan(1)), 30 * kMs);
+  EXPECT_EQ(times.faults(), 1u);
+  EXPECT_EQ(times.steps(), 0u);
+}
+
+TEST(RecordedTimes, AJumpTheNextRecordsKeepIsTheClocksStep) {
+  RecordedTimes times;
+  constexpr TimestampNs kS = kNanosecondsPerSecond;
+  const std::array<TimestampNs, 3> kept = {100 * kS + 10'000'000, 100 * kS + 20'000'000,
+                                           100 * kS + 30'000'000};
+  EXPECT_EQ(times.judge(1 * kS, {}), 1 * kS);
+  EXPECT_EQ(times.judge(100 * kS, std::span(kept)), 100 * kS);
+  EXPECT_EQ(times.steps(), 1u);
+  EXPECT_EQ(times.faults(), 0u);
+  // Backwards too, and the end of the log cannot confirm a jump.
+  EXPECT_EQ(times.judge(2 * kS, {}), 100 * kS);
+  EXPECT_EQ(times.faults(), 1u);
+}
+
+TEST(RecordedTimes, AFirstRecordItsSuccessorsDoNotFollowIsDropped) {
+  RecordedTimes times;
+  constexpr TimestampNs kMs = 1'000'000;
+  const std::array<TimestampNs, 3> after = {20 * kMs, 30 * kMs, 40 * kMs};
+  EXPECT_EQ(times.judge(9'000'000 * kMs, std::span(after)), std::nullopt);
+  EXPECT_EQ(times.judge(10 * kMs, std::span(after)), 10 * kMs);
+  EXPECT_EQ(times.faults(), 1u);
+}
+
+TEST(CandumpFileBus, AFrameWhoseTimeADamagedDigitMovedKeepsItsPlace) {
+  const fs::path path = write_temp("jump.candump",
+                                   "(1156255200.010000) can0 400#01\n"
+                                   "(1156255200.020000) can0 400#02\n"
+                                   "(1256255200.030000) can0 400#03\n"  // a 1 for a 2
+                                   "(1156255200.040000) can0 400#04\n"
+                                   "(1156255200.050000) can0 400#05\n");
+  CandumpFileBus bus(path.string());
+  std::vector<TimestampNs> stamps;
+  CanFrame frame;
+  for (CanReceiveResult r = bus.receive(frame, 0); r.status == IoStatus::kOk;
+       r = bus.receive(frame, 0)) {
+    stamps.push_back(r.stamp_ns);
+  }
+  EXPECT_EQ(stamps,
+            (std::vector<TimestampNs>{1156255200010000000, 1156255200020000000, 1156255200020000000,
+                                      1156255200040000000, 1156255200050000000}));
+  EXPECT_EQ(bus.times().faults(), 1u);
+  fs::remove(path);
+}
+
+// A byte log of `count` device records, 10 ms apart, each of `bytes` bytes of its index.
+std::string byte_log(int count, std::size_t bytes) {
+  std::string log(protocol::byte_log::kMagic.begin(), protocol::byte_log::kMagic.end());
+  for (int i = 0; i < count; ++i) {
+    std::array<std::uint8_t, protocol::byte_log::kRecordHeaderBytes> header{};
+    protocol::byte_log::encode_record_header(
+        {1'000'000'000 + i * 10'000'000, static_cast<std::uint32_t>(bytes),
+         protocol::byte_log::Direction::kFromDevice},
+        header);
+    log.append(header.begin(), header.end());
+    log.append(bytes, static_cast<char>('a' + i));
+  }
+  return log;
+}
+
+std::string read_all(ByteLogFileStream& stream) {
+  std::string text;
+  std::array<std::uint8_t, 64> buffer{};
+  for (ReadResult r = stream.read(buffer, 0); r.status == IoStatus::kOk;
+       r = stream.read(buffer, 0)) {
+    text.append(buffer.begin(), buffer.begin() + static_cast<std::ptrdiff_t>(r.bytes));
+  }
+  return text;
+}
+
+TEST(ByteLogFileStream, ADamagedRecordIsSkippedAndTheRestRead) {
+  std::string log = byte_log(6, 20);
+  constexpr std::size_t kRecord = protocol::byte_log::kRecordHeaderBytes + 20;
+  log[8 + 2 * kRecord + 13] = 4;  // the third record's reserved byte
+  const fs::path path = write_temp("damaged.bytelog", log);
+  ByteLogFileStream stream(path.string());
+  ASSERT_TRUE(stream.ok()) << stream.error();
+  const std::string text = read_all(stream);
+  EXPECT_EQ(text, std::string(20, 'a') + std::string(20, 'b') + std::string(20, 'd') +
+                      std::string(20, 'e') + std::string(20, 'f'));
+  EXPECT_EQ(stream.skipped_places(), 1u);
+  EXPECT_EQ(stream.skipped_bytes(), kRecord);
+  EXPECT_EQ(stream.first_skip_offset(), 8 + 2 * kRecord);
+  EXPECT_EQ(stream.first_skip(), protocol::byte_log::ParseError::kBadReserved);
+  EXPECT_EQ(stream.damage(), protocol::byte_log::ParseError::kNone);
+  fs::remove(path);
+}
+
+TEST(ByteLogFileStream, ALengthADamagedBitChangedIsNotBelieved) {
+  std::string log = byte_log(6, 20);
+  constexpr std::size_t kRecord = protocol::byte_log::kRecordHeaderBytes + 20;
+  log[8 + kRecord + 8] = 21;  // the second record says 21 bytes
+  const fs::path path = write_temp("length.bytelog", log);
+  ByteLogFileStream stream(path.string());
+  const std::string text = read_all(stream);
+  EXPECT_EQ(text, std::string(20, 'a') + std::string(20, 'c') + std::string(20, 'd') +
+                      std::string(20, 'e') + std::string(20, 'f'));
+  EXPECT_EQ(stream.skipped_places(), 1u);
+  fs::remove(path);
+}
+
+TEST(ByteLogFileStream, ALogCutInARecordEndsDamagedThere) {
+  std::string log = byte_log(4, 20);
+  log.resize(log.size() - 5);
+  const fs::path path = write_temp("cut.bytelog", log);
+  ByteLogFileStream stream(path.string());
+  EXPECT_EQ(read_all(stream), std::string(20, 'a') + std::string(20, 'b') + std::string(20, 'c'));
+  EXPECT_EQ(stream.damage(), protocol::byte_log::ParseError::kTruncatedData);
+  EXPECT_EQ(stream.damage_offset(), 8 + 3 * (protocol::byte_log::kRecordHeaderBytes + 20));
   fs::remove(path);
 }
 
