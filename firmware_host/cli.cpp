@@ -32,8 +32,7 @@ void print_usage_error(std::ostream& err, const CLI::Error& error) {
 // CLI11 reads "nan" and "inf" as floats, and a range check lets NaN through.
 CLI::Validator finite_number() {
   return {[](const std::string& text) -> std::string {
-            char* end = nullptr;
-            const double value = std::strtod(text.c_str(), &end);
+            const double value = std::strtod(text.c_str(), nullptr);
             return std::isfinite(value) ? std::string() : "'" + text + "' is not a finite number";
           },
           ""};

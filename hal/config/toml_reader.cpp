@@ -15,14 +15,6 @@ namespace {
 // Configuration files are a few kilobytes; a bigger one is not a configuration.
 constexpr std::size_t kMaxConfigBytes = std::size_t{1} << 20;
 
-std::string config_text(const std::filesystem::path& path) {
-  try {
-    return read_whole_file(path, kMaxConfigBytes);
-  } catch (const FileError& error) {
-    throw ConfigError(error.what());
-  }
-}
-
 // toml++ 3.3 (Debian's) reaches an unreachable point on some non-ASCII characters where it
 // looks for whitespace (marzer/tomlplusplus#190, #295): such a character is refused first
 // where TOML allows none (outside comments and strings) and in multi-line basic strings,
@@ -107,7 +99,11 @@ void refuse_unknown_tables(const toml::table& document, std::string_view source)
 }
 
 std::string read_config_file(const std::filesystem::path& path) {
-  return config_text(path);
+  try {
+    return read_whole_file(path, kMaxConfigBytes);
+  } catch (const FileError& error) {
+    throw ConfigError(error.what());
+  }
 }
 
 std::string builtin_or_file_text(std::span<const std::string_view> names,
@@ -131,7 +127,7 @@ std::string builtin_or_file_text(std::span<const std::string_view> names,
                       "; or give a .toml file)");
   }
   source = std::string(name_or_path);
-  return config_text(std::filesystem::path(name_or_path));
+  return read_config_file(std::filesystem::path(name_or_path));
 }
 
 TableReader::TableReader(const toml::table& table, std::string source, std::string path)

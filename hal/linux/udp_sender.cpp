@@ -26,7 +26,8 @@ std::string UdpSender::check_destination(const std::string& destination) {
   const bool digits =
       port.size() <= kMaxPortDigits && port.find_first_not_of("0123456789") == std::string::npos;
   constexpr int kMaxPort = 65535;
-  if (!digits || std::stoi(port) < 1 || std::stoi(port) > kMaxPort) {
+  const int number = digits ? std::stoi(port) : 0;
+  if (number < 1 || number > kMaxPort) {
     return "UDP destination '" + destination + "': the port must be 1 to 65535";
   }
   return {};

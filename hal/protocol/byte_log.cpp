@@ -38,6 +38,24 @@ void encode_record_header(const RecordHeader& header,
   out[13] = out[14] = out[15] = 0;
 }
 
+ParseError decode_record_header(std::span<const std::uint8_t, kRecordHeaderBytes> bytes,
+                                RecordHeader& header) noexcept {
+  const auto length = static_cast<std::uint32_t>(read_le(bytes.subspan<8, 4>()));
+  if (bytes[12] > 1) {
+    return ParseError::kBadDirection;
+  }
+  if (bytes[13] != 0 || bytes[14] != 0 || bytes[15] != 0) {
+    return ParseError::kBadReserved;
+  }
+  if (length > kMaxRecordBytes) {
+    return ParseError::kTooLong;
+  }
+  header.stamp_ns = static_cast<TimestampNs>(read_le(bytes.subspan<0, 8>()));
+  header.length = length;
+  header.direction = static_cast<Direction>(bytes[12]);
+  return ParseError::kNone;
+}
+
 ParseError Reader::next(Record& record) noexcept {
   if (rest_.empty()) {
     return ParseError::kEnd;
@@ -45,24 +63,16 @@ ParseError Reader::next(Record& record) noexcept {
   if (rest_.size() < kRecordHeaderBytes) {
     return ParseError::kTruncatedHeader;
   }
-  const auto length = static_cast<std::uint32_t>(read_le(rest_.subspan(8, 4)));
-  if (rest_[12] > 1) {
-    return ParseError::kBadDirection;
+  if (const ParseError error =
+          decode_record_header(rest_.first<kRecordHeaderBytes>(), record.header);
+      error != ParseError::kNone) {
+    return error;
   }
-  if (rest_[13] != 0 || rest_[14] != 0 || rest_[15] != 0) {
-    return ParseError::kBadReserved;
-  }
-  if (length > kMaxRecordBytes) {
-    return ParseError::kTooLong;
-  }
-  if (rest_.size() - kRecordHeaderBytes < length) {
+  if (rest_.size() - kRecordHeaderBytes < record.header.length) {
     return ParseError::kTruncatedData;
   }
-  record.header.stamp_ns = static_cast<TimestampNs>(read_le(rest_.subspan(0, 8)));
-  record.header.length = length;
-  record.header.direction = static_cast<Direction>(rest_[12]);
-  record.bytes = rest_.subspan(kRecordHeaderBytes, length);
-  const std::size_t size = kRecordHeaderBytes + length;
+  record.bytes = rest_.subspan(kRecordHeaderBytes, record.header.length);
+  const std::size_t size = kRecordHeaderBytes + record.header.length;
   rest_ = rest_.subspan(size);
   offset_ += size;
   return ParseError::kNone;

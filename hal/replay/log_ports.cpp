@@ -10,7 +10,6 @@
 #include <system_error>
 
 #include "blockmap/hal/protocol/candump.hpp"
-#include "blockmap/hal/protocol/little_endian.hpp"
 
 namespace blockmap::hal::replay {
 
@@ -25,6 +24,19 @@ LogFile::~LogFile() {
     static_cast<void>(std::fclose(file_));
   }
 }
+
+namespace {
+
+// Whether `later_ns` lies from `max_back_ns` before `earlier_ns` to `max_ahead_ns` after it;
+// a damaged time can be any 64-bit number, so the difference is checked for overflow.
+bool within(TimestampNs earlier_ns, TimestampNs later_ns, TimestampNs max_back_ns,
+            TimestampNs max_ahead_ns) noexcept {
+  TimestampNs gap_ns = 0;
+  return !__builtin_sub_overflow(later_ns, earlier_ns, &gap_ns) && gap_ns >= -max_back_ns &&
+         gap_ns <= max_ahead_ns;
+}
+
+}  // namespace
 
 CandumpFileBus::CandumpFileBus(const std::string& path) : file_(path) {}
 
@@ -60,10 +72,7 @@ bool RecordedTimes::most_follow(TimestampNs stamp_ns,
                                 std::span<const TimestampNs> next_ns) noexcept {
   std::size_t following = 0;
   for (std::size_t i = 0; i < next_ns.size(); ++i) {
-    TimestampNs gap_ns = 0;
-    const auto reach_ns = static_cast<TimestampNs>(i + 1) * kMaxGapNs;
-    if (!__builtin_sub_overflow(next_ns[i], stamp_ns, &gap_ns) && gap_ns >= -kMaxBackNs &&
-        gap_ns <= reach_ns) {
+    if (within(stamp_ns, next_ns[i], kMaxBackNs, static_cast<TimestampNs>(i + 1) * kMaxGapNs)) {
       ++following;
     }
   }
@@ -82,11 +91,7 @@ bool RecordedTimes::kept(TimestampNs stamp_ns, std::span<const TimestampNs> next
 }
 
 bool RecordedTimes::follows(TimestampNs earlier_ns, TimestampNs later_ns) noexcept {
-  TimestampNs gap_ns = 0;
-  if (__builtin_sub_overflow(later_ns, earlier_ns, &gap_ns)) {
-    return false;
-  }
-  return gap_ns >= -kMaxBackNs && gap_ns <= kMaxGapNs;
+  return within(earlier_ns, later_ns, kMaxBackNs, kMaxGapNs);
 }
 
 CanReceiveResult CandumpFileBus::do_receive(CanFrame& frame, TimestampNs /*timeout_ns*/) {
@@ -245,19 +250,10 @@ ByteLogFileStream::Header ByteLogFileStream::header_at(std::uint64_t offset) con
     header.error = byte_log::ParseError::kTruncatedHeader;
     return header;
   }
-  byte_log::Reader reader(bytes);
-  byte_log::Record record;
-  header.error = reader.next(record);
-  if (header.error == byte_log::ParseError::kTruncatedData ||
-      header.error == byte_log::ParseError::kNone) {
-    // The codec saw the header alone: the bytes lie in the file, if it is long enough.
-    header.fields.stamp_ns =
-        static_cast<TimestampNs>(protocol::read_le(std::span<const std::uint8_t>(bytes).first(8)));
-    header.fields.length = static_cast<std::uint32_t>(
-        protocol::read_le(std::span<const std::uint8_t>(bytes).subspan(8, 4)));
-    header.fields.direction = static_cast<byte_log::Direction>(bytes[12]);
-    const bool whole = size_ - offset - bytes.size() >= header.fields.length;
-    header.error = whole ? byte_log::ParseError::kNone : byte_log::ParseError::kTruncatedData;
+  header.error = byte_log::decode_record_header(bytes, header.fields);
+  if (header.error == byte_log::ParseError::kNone &&
+      size_ - offset - bytes.size() < header.fields.length) {
+    header.error = byte_log::ParseError::kTruncatedData;
   }
   return header;
 }
@@ -289,9 +285,7 @@ bool ByteLogFileStream::near(TimestampNs before_ns, TimestampNs stamp_ns) noexce
   // little out of order.
   constexpr TimestampNs kMaxAfterNs = 60 * kNanosecondsPerSecond;
   constexpr TimestampNs kMaxBeforeNs = kNanosecondsPerSecond;
-  TimestampNs gap_ns = 0;
-  return !__builtin_sub_overflow(stamp_ns, before_ns, &gap_ns) && gap_ns >= -kMaxBeforeNs &&
-         gap_ns <= kMaxAfterNs;
+  return within(before_ns, stamp_ns, kMaxBeforeNs, kMaxAfterNs);
 }
 
 std::optional<std::uint64_t> ByteLogFileStream::next_record_start(std::uint64_t from) {
@@ -353,9 +347,7 @@ bool ByteLogFileStream::load_next() {
       const std::uint64_t at = offset_;
       // A header that reads well with none after it: the record after it tells why.
       const byte_log::ParseError why =
-          header.error != byte_log::ParseError::kNone
-              ? header.error
-              : header_at(offset_ + byte_log::kRecordHeaderBytes + header.fields.length).error;
+          header.error != byte_log::ParseError::kNone ? header.error : header_at(next).error;
       if (!resynchronise(why)) {
         // Nothing reads well after it: the log ends damaged here.
         damage_ = header.error == byte_log::ParseError::kNone ? byte_log::ParseError::kTruncatedData

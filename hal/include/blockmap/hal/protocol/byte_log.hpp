@@ -56,6 +56,11 @@ enum class ParseError : std::uint8_t {
 void encode_record_header(const RecordHeader& header,
                           std::span<std::uint8_t, kRecordHeaderBytes> out) noexcept;
 
+// Reads a record's 16-byte header, checking what a header alone can show (direction,
+// reserved bytes, length). kNone or the error; `header` is set when kNone.
+[[nodiscard]] ParseError decode_record_header(
+    std::span<const std::uint8_t, kRecordHeaderBytes> bytes, RecordHeader& header) noexcept;
+
 // Reads the records of a whole log held in memory (the magic is checked by the caller).
 class Reader {
  public:
