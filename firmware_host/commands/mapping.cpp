@@ -22,13 +22,14 @@ void add_udp_option(CLI::App& command, std::string& destination) {
       ->check(CLI::Validator(&hal::linux_backend::UdpSender::check_destination, ""));
 }
 
+pipeline::MapperConfig with_config_file(const pipeline::MapperConfig& config,
+                                        const MappingOptions& options) {
+  return options.config.empty() ? config : hal::config::load_mapper_config(options.config, config);
+}
+
 pipeline::MapperConfig mapper_config_for(const hal::config::RobotSpec& robot,
                                          const MappingOptions& options) {
-  pipeline::MapperConfig config = hal::config::mapper_config_for(robot);
-  if (!options.config.empty()) {
-    config = hal::config::load_mapper_config(options.config, config);
-  }
-  return config;
+  return with_config_file(hal::config::mapper_config_for(robot), options);
 }
 
 std::string MappingSession::start(const pipeline::MapperConfig& config,

@@ -52,8 +52,12 @@ class CloudRecorder final : public pipeline::PointSink {
 // --udp HOST:PORT into `destination`, its form and port checked as the command line is read.
 void add_udp_option(CLI::App& command, std::string& destination);
 
-// The mapper's configuration for `robot` (hal::config::mapper_config_for) with the [planes]
-// table of options.config when given. Throws ConfigError.
+// `config` with the tables of options.config (config/README.md) when given. Throws
+// ConfigError.
+[[nodiscard]] pipeline::MapperConfig with_config_file(const pipeline::MapperConfig& config,
+                                                      const MappingOptions& options);
+// The mapper's configuration for `robot` (hal::config::mapper_config_for) with the tables of
+// options.config when given. Throws ConfigError.
 [[nodiscard]] pipeline::MapperConfig mapper_config_for(const hal::config::RobotSpec& robot,
                                                        const MappingOptions& options);
 

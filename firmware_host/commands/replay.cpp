@@ -218,7 +218,8 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
   hal::config::RobotSpec robot;
   pipeline::MapperConfig config;
   const bool map_planes = !options.mapping.out.empty() && !options.mapping.trajectory_only;
-  if (fs::exists(dir / "robot.toml")) {
+  const bool robot_recorded = fs::exists(dir / "robot.toml");
+  if (robot_recorded) {
     // The log's own file: a fault in it is the data's (1), not the command line's.
     try {
       robot = hal::config::load_robot((dir / "robot.toml").string());
@@ -236,8 +237,10 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
       }
       return !recorded;
     });
-    config = mapper_config_for(robot, options.mapping);
-  } else if (map_planes) {
+    config = hal::config::mapper_config_for(robot);
+  }
+  config = with_config_file(config, options.mapping);
+  if (!robot_recorded && map_planes) {
     err << "replay: warning: no robot.toml in " << options.dir
         << ": the lasers' mounts are unknown, so no laser log is read (the trajectory only)\n";
   }

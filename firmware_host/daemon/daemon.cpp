@@ -256,6 +256,10 @@ class Pipeline {
                    static_cast<unsigned long long>(device.published()),
                    static_cast<unsigned long long>(device.rejected()),
                    static_cast<unsigned long long>(device.dropped_bytes()));
+      if (device.implausible) {
+        std::fprintf(health_, R"(,"implausible":%llu)",
+                     static_cast<unsigned long long>(device.implausible()));
+      }
       if (device.link != nullptr) {
         std::fprintf(health_, R"(,"opens":%llu,"open_failures":%llu,"losses":%llu,"silences":%llu)",
                      static_cast<unsigned long long>(device.link->opens.load()),
@@ -583,6 +587,9 @@ class Daemon::Impl {
       err << "device " << device.name << ": " << device.published() << " messages, "
           << device.rejected() << " refused (queue full), " << device.dropped_bytes()
           << " dropped by the decoder";
+      if (device.implausible) {
+        err << ", " << device.implausible() << " no device could send left out";
+      }
       if (device.link != nullptr) {
         err << ", opened " << device.link->opens.load() << " times, lost "
             << device.link->losses.load() << ", silent " << device.link->silences.load();

@@ -38,6 +38,7 @@ struct Line {
   int master = -1;
   int slave = -1;  // kept open so that the line exists before the daemon opens it
   bool muted = false;
+  bool unread = false;  // a write found nobody reading: the next ones do not wait for it
   std::uint64_t bytes = 0;
   std::uint64_t discarded = 0;
 
@@ -97,11 +98,13 @@ struct Line {
       }
       pollfd wait{master, POLLOUT, 0};
       if ((written < 0 && errno != EAGAIN && errno != EINTR) ||
-          ::poll(&wait, 1, kWriteWaitMs) <= 0) {
+          ::poll(&wait, 1, unread ? 0 : kWriteWaitMs) <= 0) {
         discarded += data.size();  // nobody reads the line: a real line loses it too
+        unread = true;
         return;
       }
     }
+    unread = false;
   }
 };
 
@@ -132,11 +135,33 @@ class ByteLog final : public SerialLog {
   std::vector<std::uint8_t> buffer_;
 };
 
-// Raw NMEA, each sentence due at its own UTC (a sentence without a time: with the one before).
+// The time of the log's first sentence that carries a date (RMC), or 0 when none does.
+TimestampNs first_dated_ns(const fs::path& path) {
+  hal::replay::FileByteStream stream(path.string());
+  hal::protocol::nmea::Decoder decoder;
+  std::array<std::uint8_t, 4096> buffer{};
+  for (hal::ReadResult read = stream.read(buffer, 0); read.status == IoStatus::kOk;
+       read = stream.read(buffer, 0)) {
+    std::span<const std::uint8_t> rest(buffer.data(), read.bytes);
+    while (!rest.empty()) {
+      const hal::protocol::nmea::Decoder::Step step = decoder.push(rest, 0);
+      rest = rest.subspan(step.consumed);
+      if (step.sentence != nullptr && step.sentence->fix.has_date) {
+        return hal::fix_stamp_ns(step.sentence->fix, 0);
+      }
+    }
+  }
+  return 0;
+}
+
+// Raw NMEA, each sentence due at its own UTC (a sentence without a time: with the one before);
+// the day from `near_ns`, or when the other logs give none (kNever), from the first date.
 class NmeaLog final : public SerialLog {
  public:
   NmeaLog(const fs::path& path, TimestampNs near_ns)
-      : stream_(path.string()), chunk_(kRecordBytes), last_ns_(near_ns) {}
+      : stream_(path.string()),
+        chunk_(kRecordBytes),
+        last_ns_(near_ns != kNever ? near_ns : first_dated_ns(path)) {}
   [[nodiscard]] std::string error() const { return stream_.ok() ? std::string() : stream_.error(); }
   bool next(std::span<const std::uint8_t>& bytes, TimestampNs& stamp_ns) override {
     std::size_t length = 0;
@@ -236,7 +261,6 @@ std::string LogPlayer::open(const fs::path& dir, const fs::path& pty_dir, CanSin
   }
   impl_->next_frame();
   impl_->can = can;
-  const TimestampNs start_ns = impl_->frame_due_ns == kNever ? 0 : impl_->frame_due_ns;
   std::vector<std::string> names;
   if (fs::exists(dir / "robot.toml")) {
     for (const hal::config::LaserSpec& laser :
@@ -249,6 +273,8 @@ std::string LogPlayer::open(const fs::path& dir, const fs::path& pty_dir, CanSin
   names.emplace_back("gps");
   std::error_code error;
   fs::create_directories(pty_dir, error);
+  // The day of the NMEA sentences' UTC: the CAN log's first frame's, else the lasers'.
+  TimestampNs start_ns = impl_->frame_due_ns;
   for (const std::string& name : names) {
     Impl::Source source;
     if (name == "gps") {
@@ -271,6 +297,7 @@ std::string LogPlayer::open(const fs::path& dir, const fs::path& pty_dir, CanSin
       return problem;
     }
     source.advance();
+    start_ns = std::min(start_ns, source.due_ns);
     impl_->serial.push_back(std::move(source));
   }
   return {};

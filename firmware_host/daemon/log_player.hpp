@@ -7,8 +7,10 @@
 // can-utils' canplayer can play the CAN log instead.
 //
 // The logs share one clock: the CAN log's and the byte logs' receive stamps, and the NMEA
-// sentences' own UTC. A serial line that was unplugged discards what it would have carried,
-// as a pulled cable does; the fault hooks (unplug, replug, inject, mute) are thread-safe, for
+// sentences' own UTC (their day from the CAN log, else the lasers', else their own RMC). A
+// serial line that was unplugged discards what it would have carried, as a pulled cable
+// does, and one nobody reads loses what does not fit, after one wait for a slow reader, as a
+// real line does; the fault hooks (unplug, replug, inject, mute) are thread-safe, for
 // fault tests.
 #pragma once
 

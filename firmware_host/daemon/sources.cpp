@@ -57,17 +57,16 @@ class RobotSource final : public Source {
     inlets.imu = &imu_->queue();
     inlets.fixes = &fixes_->queue();
     if (config.base) {
-      hal::devices::SegwayBaseConfig base_config;
-      base_config.rmp.model = robot.base.model;
-      base_config.rmp.yaw_sign = robot.base.yaw_sign;
-      base_.emplace(can_->bus(), odometry_->queue(), imu_->queue(), base_config);
+      base_.emplace(can_->bus(), odometry_->queue(), imu_->queue(),
+                    hal::config::segway_base_config_for(robot));
       add_link(
           "base",
           LinkDevice{[this] { return open_base(); }, [this] { can_->close(); },
                      [this](TimestampNs timeout) { return base_->poll(timeout); },
                      [this] { return base_->samples_published(); }},
           [this] { return base_->samples_rejected(); },
-          [this] { return base_->decoder().drops().total(); });
+          [this] { return base_->decoder().drops().total(); },
+          [this] { return base_->groups_implausible(); });
     }
     for (std::size_t i = 0; i < config.lasers.size(); ++i) {
       if (!config.lasers[i]) {
@@ -240,11 +239,13 @@ class RobotSource final : public Source {
   };
 
   void add_link(const std::string& name, LinkDevice device, std::function<std::uint64_t()> rejected,
-                std::function<std::uint64_t()> dropped_bytes) {
+                std::function<std::uint64_t()> dropped_bytes,
+                std::function<std::uint64_t()> implausible = {}) {
     DeviceView view;
     view.published = device.published;
     view.rejected = std::move(rejected);
     view.dropped_bytes = std::move(dropped_bytes);
+    view.implausible = std::move(implausible);
     links_.push_back(std::make_unique<DeviceLink>(name, std::move(device), timing_, clock_));
     view.name = links_.back()->name().c_str();
     view.link = &links_.back()->health();
@@ -331,19 +332,20 @@ class SimSource final : public OwnThreadSource {
     hal::sim::SimulatedRobot* r = robot_.get();
     devices.push_back(DeviceView{"base", nullptr, [r] { return r->base().samples_published(); },
                                  [r] { return r->base().samples_rejected(); },
-                                 [r] { return r->base().decoder().drops().total(); }});
+                                 [r] { return r->base().decoder().drops().total(); },
+                                 [r] { return r->base().groups_implausible(); }});
     laser_names_.reserve(robot.lasers.size());
     for (std::size_t i = 0; i < r->laser_count(); ++i) {
       inlets.scans.push_back(&r->scans(i));
       laser_names_.push_back("laser_" + robot.lasers[i].name);
-      devices.push_back(DeviceView{laser_names_.back().c_str(), nullptr,
-                                   [r, i] { return r->laser(i).scans_published(); },
-                                   [r, i] { return r->laser(i).scans_rejected(); },
-                                   [r, i] { return r->laser(i).decoder().drops().total(); }});
+      devices.push_back(DeviceView{
+          laser_names_.back().c_str(), nullptr, [r, i] { return r->laser(i).scans_published(); },
+          [r, i] { return r->laser(i).scans_rejected(); },
+          [r, i] { return r->laser(i).decoder().drops().total(); }, nullptr});
     }
     devices.push_back(DeviceView{"gps", nullptr, [r] { return r->gps().fixes_published(); },
                                  [r] { return r->gps().fixes_rejected(); },
-                                 [r] { return r->gps().decoder().drops().total(); }});
+                                 [r] { return r->gps().decoder().drops().total(); }, nullptr});
   }
   ~SimSource() override { stop(); }  // before the robot the thread runs goes
 
@@ -423,16 +425,17 @@ class ReplaySource final : public OwnThreadSource {
     }
     const auto never = [] { return std::uint64_t{0}; };
     devices.push_back(DeviceView{"base", nullptr, [this] { return published_[0]->load(); }, never,
-                                 [this] { return run_.base().decoder().drops().total(); }});
+                                 [this] { return run_.base().decoder().drops().total(); },
+                                 [this] { return run_.base().groups_implausible(); }});
     laser_names_.reserve(robot.lasers.size());
     for (std::size_t i = 0; i < robot.lasers.size(); ++i) {
       laser_names_.push_back("laser_" + robot.lasers[i].name);
-      devices.push_back(DeviceView{laser_names_.back().c_str(), nullptr,
-                                   [this, i] { return published_[i + 2]->load(); }, never,
-                                   [this, i] { return run_.laser(i).decoder().drops().total(); }});
+      devices.push_back(DeviceView{
+          laser_names_.back().c_str(), nullptr, [this, i] { return published_[i + 2]->load(); },
+          never, [this, i] { return run_.laser(i).decoder().drops().total(); }, nullptr});
     }
     devices.push_back(DeviceView{"gps", nullptr, [this] { return published_[1]->load(); }, never,
-                                 [this] { return run_.gps().decoder().drops().total(); }});
+                                 [this] { return run_.gps().decoder().drops().total(); }, nullptr});
   }
   ~ReplaySource() override { stop(); }  // before the logs the thread reads go
 

@@ -58,6 +58,8 @@ struct DeviceView {
   std::function<std::uint64_t()> published;      // messages
   std::function<std::uint64_t()> rejected;       // queue full: the newest refused
   std::function<std::uint64_t()> dropped_bytes;  // what the decoder threw away (all reasons)
+  // Messages the device could not have sent, left out (the base's status groups); may be empty.
+  std::function<std::uint64_t()> implausible;
 };
 
 // The queues the pipeline drains, whoever fills them.

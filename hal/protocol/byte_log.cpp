@@ -22,6 +22,10 @@ const char* to_string(ParseError error) noexcept {
       return "bad_reserved";
     case ParseError::kTooLong:
       return "too_long";
+    case ParseError::kBadLength:
+      return "bad_length";
+    case ParseError::kBadMagic:
+      return "bad_magic";
   }
   return "unknown";
 }

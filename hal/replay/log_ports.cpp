@@ -59,7 +59,8 @@ std::optional<TimestampNs> RecordedTimes::judge(TimestampNs stamp_ns,
     last_ns_ = stamp_ns;
     return stamp_ns;
   }
-  if (next_ns.size() < kConfirming || !kept(stamp_ns, next_ns)) {
+  // A step is kept when the records after it follow the new time and not the old one.
+  if (next_ns.size() < kConfirming || !kept(stamp_ns, next_ns) || follows(*last_ns_, next_ns[0])) {
     ++faults_;
     return *last_ns_;
   }
@@ -207,8 +208,7 @@ ByteLogFileStream::ByteLogFileStream(const std::string& path) : file_(path) {
   struct stat status {};
   std::array<std::uint8_t, 8> magic{};
   if (::fstat(fd_, &status) != 0 || !S_ISREG(status.st_mode) ||
-      ::pread(fd_, magic.data(), magic.size(), 0) != static_cast<ssize_t>(magic.size()) ||
-      !protocol::byte_log::has_magic(magic)) {
+      ::pread(fd_, magic.data(), magic.size(), 0) != static_cast<ssize_t>(magic.size())) {
     error_ = path + ": not a byte log (it does not start with BMBYTES1)";
     return;
   }
@@ -217,6 +217,16 @@ ByteLogFileStream::ByteLogFileStream(const std::string& path) : file_(path) {
   constexpr std::size_t kReadAheadBytes = 1 << 16;
   read_ahead_.resize(kReadAheadBytes);
   record_.reserve(4096);
+  // A damaged magic in front of records that read well loses nothing else.
+  if (!protocol::byte_log::has_magic(magic)) {
+    if (!record_starts_at(offset_, std::nullopt)) {
+      error_ = path + ": not a byte log (it does not start with BMBYTES1)";
+      return;
+    }
+    skipped_places_ = 1;
+    skipped_bytes_ = magic.size();
+    first_skip_ = protocol::byte_log::ParseError::kBadMagic;
+  }
 }
 
 bool ByteLogFileStream::read_at(std::uint64_t offset, std::span<std::uint8_t> out) const {
@@ -288,13 +298,17 @@ bool ByteLogFileStream::near(TimestampNs before_ns, TimestampNs stamp_ns) noexce
   return within(before_ns, stamp_ns, kMaxBeforeNs, kMaxAfterNs);
 }
 
-std::optional<std::uint64_t> ByteLogFileStream::next_record_start(std::uint64_t from) {
+std::optional<std::uint64_t> ByteLogFileStream::next_record_start(std::uint64_t from,
+                                                                  std::uint64_t until) {
   namespace byte_log = protocol::byte_log;
   // The cheap test first, on the bytes in memory: a direction of 0 or 1 and three zeros.
   constexpr std::size_t kWindowBytes = 1 << 16;
   window_.resize(kWindowBytes);
-  while (from + byte_log::kRecordHeaderBytes <= size_) {
-    const ssize_t got = ::pread(fd_, window_.data(), window_.size(), static_cast<off_t>(from));
+  while (from < until && from + byte_log::kRecordHeaderBytes <= size_) {
+    // The headers of the places before `until`, and no more.
+    const std::size_t wanted =
+        std::min<std::uint64_t>(window_.size(), until - from + byte_log::kRecordHeaderBytes - 1);
+    const ssize_t got = ::pread(fd_, window_.data(), wanted, static_cast<off_t>(from));
     if (got < static_cast<ssize_t>(byte_log::kRecordHeaderBytes)) {
       break;
     }
@@ -311,26 +325,49 @@ std::optional<std::uint64_t> ByteLogFileStream::next_record_start(std::uint64_t 
 }
 
 bool ByteLogFileStream::resynchronise(protocol::byte_log::ParseError why) {
-  const std::optional<std::uint64_t> start = next_record_start(offset_ + 1);
+  const std::optional<std::uint64_t> start = next_record_start(offset_ + 1, size_);
   if (!start) {
     ended_ = true;
     return false;
   }
+  note_skip(why, *start);
+  offset_ = *start;
+  return true;
+}
+
+void ByteLogFileStream::note_skip(protocol::byte_log::ParseError why, std::uint64_t to) noexcept {
   if (skipped_places_ == 0) {
     first_skip_offset_ = offset_;
     first_skip_ = why;
   }
   ++skipped_places_;
-  skipped_bytes_ += *start - offset_;
-  offset_ = *start;
-  return true;
+  skipped_bytes_ += to - offset_;
 }
 
-bool ByteLogFileStream::reads_well_before_damage(std::uint64_t offset, std::uint64_t next) {
-  // The record reads well but the one after it does not: either its length is wrong, and a
-  // record starts inside its bytes, or the damage is the next one's.
-  const std::optional<std::uint64_t> start = next_record_start(offset + 1);
-  return !start || *start > next;
+protocol::byte_log::ParseError ByteLogFileStream::length_fault(std::uint64_t offset,
+                                                               const Header& header,
+                                                               std::uint64_t next) {
+  namespace byte_log = protocol::byte_log;
+  const Header after = header_at(next);
+  if (after.error == byte_log::ParseError::kEnd ||
+      after.error == byte_log::ParseError::kTruncatedHeader ||
+      after.error == byte_log::ParseError::kTruncatedData) {
+    return byte_log::ParseError::kNone;
+  }
+  // A damaged length can land on bytes that read as a header, even on a later record's.
+  const TimestampNs after_ns = after.fields.stamp_ns;
+  if (after.error == byte_log::ParseError::kNone &&
+      (RecordedTimes::follows(header.fields.stamp_ns, after_ns) ||
+       (last_good_ns_ && RecordedTimes::follows(*last_good_ns_, after_ns)))) {
+    return byte_log::ParseError::kNone;
+  }
+  // Either the length is wrong, and records start inside the bytes it claims, or the damage
+  // (or a device's silence) comes after a whole record.
+  if (!next_record_start(offset + 1, next)) {
+    return byte_log::ParseError::kNone;
+  }
+  return after.error != byte_log::ParseError::kNone ? after.error
+                                                    : byte_log::ParseError::kBadLength;
 }
 
 bool ByteLogFileStream::load_next() {
@@ -342,20 +379,23 @@ bool ByteLogFileStream::load_next() {
       return false;
     }
     const std::uint64_t next = offset_ + byte_log::kRecordHeaderBytes + header.fields.length;
-    if (!record_starts_at(offset_, std::nullopt) &&
-        (header.error != byte_log::ParseError::kNone || !reads_well_before_damage(offset_, next))) {
-      const std::uint64_t at = offset_;
-      // A header that reads well with none after it: the record after it tells why.
-      const byte_log::ParseError why =
-          header.error != byte_log::ParseError::kNone ? header.error : header_at(next).error;
-      if (!resynchronise(why)) {
-        // Nothing reads well after it: the log ends damaged here.
-        damage_ = header.error == byte_log::ParseError::kNone ? byte_log::ParseError::kTruncatedData
-                                                              : header.error;
-        damage_offset_ = at;
-        return false;
+    const byte_log::ParseError why = header.error != byte_log::ParseError::kNone
+                                         ? header.error
+                                         : length_fault(offset_, header, next);
+    if (why != byte_log::ParseError::kNone) {
+      if (resynchronise(why)) {
+        continue;
       }
-      continue;
+      // Nothing reads well after it: a log cut off ends damaged here; a damaged last record
+      // is one more place skipped.
+      if (why == byte_log::ParseError::kTruncatedHeader ||
+          why == byte_log::ParseError::kTruncatedData) {
+        damage_ = why;
+        damage_offset_ = offset_;
+      } else {
+        note_skip(why, size_);
+      }
+      return false;
     }
     // The times of the records after it, as far as they read well.
     std::array<TimestampNs, RecordedTimes::kConfirming> next_ns{};

@@ -1,11 +1,17 @@
 // Recorded logs with damage a robot's disk or a copy can give them (issue 55): one corrupt
-// record of each kind in a 20 s run maps as the undamaged run does, and says what it skipped.
+// record of each kind in a 20 s run maps as the undamaged run does, and says what it skipped;
+// a whole run with one byte in a thousand damaged keeps most of its walls.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -105,6 +111,112 @@ TEST_F(DamagedLogs, OneCorruptRecordOfEachKindMapsAsTheWholeLogDoesAndIsReported
               std::string::npos)
         << damaged.err;
   }
+}
+
+TEST_F(DamagedLogs, PlayOnARandomCanLogWithNobodyReadingKeepsItsPace) {
+  fs::copy(dir_ / "log", dir_ / "random_can");
+  std::mt19937 draw(1);
+  std::string noise(100000, '\0');
+  for (char& byte : noise) {
+    byte = static_cast<char>(draw());
+  }
+  write_bytes(dir_ / "random_can" / "rmp.candump", noise);
+  // 20 s of logs at ten times their pace: 2 s, though the CAN log gives no clock and nobody
+  // reads the lines.
+  const ProcessResult played =
+      run_process(BLOCKMAP_EXE, {"play", "random_can", "--pty-dir", "ptys", "--speed", "10"}, dir_,
+                  minutes(10.0));
+  ASSERT_FALSE(played.timed_out) << played.err;
+  EXPECT_EQ(played.status, 0) << played.err;
+  EXPECT_NE(played.err.find("play: 20.0"), std::string::npos) << played.err;
+}
+
+// One bit flipped in one byte of every thousand, the bytes and bits drawn by `draw`.
+void flip_one_byte_in_a_thousand(const fs::path& log, std::mt19937& draw) {
+  std::string bytes = bytes_of(log);
+  std::uniform_int_distribution<std::size_t> byte(0, bytes.size() - 1);
+  std::uniform_int_distribution<int> bit(0, 7);
+  for (std::size_t i = 0; i < bytes.size() / 1000; ++i) {
+    const int flipped = bit(draw);
+    char& target = bytes[byte(draw)];
+    target = static_cast<char>(target ^ (1 << flipped));
+  }
+  write_bytes(log, bytes);
+}
+
+std::vector<nlohmann::json> walls_of(const fs::path& out) {
+  std::vector<nlohmann::json> walls;
+  const nlohmann::json list = nlohmann::json::parse(read_text(out / "planes.json"));
+  for (const nlohmann::json& plane : list["planes"]) {
+    if (plane["kind"] == "wall") {
+      walls.push_back(plane);
+    }
+  }
+  return walls;
+}
+
+// Whether one of `walls` is `wall`: within 3 degrees, 0.15 m off its plane, its centre near.
+bool has_wall(const std::vector<nlohmann::json>& walls, const nlohmann::json& wall) {
+  const auto vec = [](const nlohmann::json& v) {
+    return std::array<double, 3>{v[0].get<double>(), v[1].get<double>(), v[2].get<double>()};
+  };
+  const std::array<double, 3> n = vec(wall["normal"]);
+  const std::array<double, 3> c = vec(wall["centroid"]);
+  for (const nlohmann::json& other : walls) {
+    const std::array<double, 3> m = vec(other["normal"]);
+    const std::array<double, 3> d = vec(other["centroid"]);
+    const double cosine = n[0] * m[0] + n[1] * m[1] + n[2] * m[2];
+    const double off_m = n[0] * (d[0] - c[0]) + n[1] * (d[1] - c[1]) + n[2] * (d[2] - c[2]);
+    if (std::abs(cosine) >= std::cos(3.0 * M_PI / 180.0) && std::abs(off_m) <= 0.15 &&
+        std::hypot(d[0] - c[0], d[1] - c[1]) <= 10.0) {
+      return true;
+    }
+  }
+  return false;
+}
+
+TEST(DamagedRun, OneByteInAThousandFlippedInEveryLogKeepsFourFifthsOfTheWalls) {
+  const fs::path dir = scratch("damaged_run");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  ASSERT_EQ(
+      run_process(BLOCKMAP_EXE, {"simulate", "--world", "benning", "--seed", "2", "--out", "log"},
+                  dir, minutes(300.0))
+          .status,
+      0);
+  // Both maps in the world's frame, whatever the damaged receiver's first fix.
+  const nlohmann::json origin =
+      nlohmann::json::parse(read_text(dir / "log" / "truth.json"))["origin"];
+  const std::string anchor = std::to_string(origin["latitude_deg"].get<double>()) + "," +
+                             std::to_string(origin["longitude_deg"].get<double>()) + "," +
+                             std::to_string(origin["height_m"].get<double>());
+  const ProcessResult whole = run_process(
+      BLOCKMAP_EXE, {"replay", "log", "--out", "whole", "--origin", anchor}, dir, minutes(600.0));
+  ASSERT_EQ(whole.status, 0) << whole.err;
+  const std::vector<nlohmann::json> walls = walls_of(dir / "whole");
+  ASSERT_GT(walls.size(), 15u);
+  for (const unsigned seed : {1u, 2u, 3u}) {
+    const fs::path damaged = dir / ("damaged_" + std::to_string(seed));
+    fs::copy(dir / "log", damaged);
+    std::mt19937 draw(seed);
+    for (const char* name :
+         {"rmp.candump", "gps.nmea", "laser_horizontal.bytelog", "laser_vertical.bytelog"}) {
+      flip_one_byte_in_a_thousand(damaged / name, draw);
+    }
+    const fs::path out = damaged.string() + "_map";
+    const ProcessResult run = run_process(
+        BLOCKMAP_EXE, {"replay", damaged.string(), "--out", out.string(), "--origin", anchor}, dir,
+        minutes(600.0));
+    ASSERT_EQ(run.status, 0) << run.err;
+    EXPECT_NE(run.err.find("damaged places skipped"), std::string::npos) << run.err;
+    const std::vector<nlohmann::json> found = walls_of(out);
+    const auto kept = static_cast<std::size_t>(
+        std::count_if(walls.begin(), walls.end(),
+                      [&](const nlohmann::json& wall) { return has_wall(found, wall); }));
+    std::cout << "damage " << seed << ": " << kept << " of " << walls.size() << " walls kept\n";
+    EXPECT_GE(5 * kept, 4 * walls.size());
+  }
+  fs::remove_all(dir);
 }
 
 TEST(DamagedCapture, OneChangedByteInACoLaCaptureCostsOnlyItsSegment) {

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <filesystem>
 #include <fstream>
@@ -114,6 +115,17 @@ TEST(RecordedTimes, AJumpTheNextRecordsKeepIsTheClocksStep) {
   EXPECT_EQ(times.faults(), 1u);
 }
 
+TEST(RecordedTimes, ATimeALittleBackWhoseSuccessorsKeepTheOldClockIsAFault) {
+  RecordedTimes times;
+  constexpr TimestampNs kMs = 1'000'000;
+  EXPECT_EQ(times.judge(1000 * kMs, {}), 1000 * kMs);
+  // 0.1 s back: the next ones follow it, but they follow the last good time too.
+  const std::array<TimestampNs, 3> after = {1020 * kMs, 1030 * kMs, 1040 * kMs};
+  EXPECT_EQ(times.judge(910 * kMs, std::span(after)), 1000 * kMs);
+  EXPECT_EQ(times.faults(), 1u);
+  EXPECT_EQ(times.steps(), 0u);
+}
+
 TEST(RecordedTimes, AFirstRecordItsSuccessorsDoNotFollowIsDropped) {
   RecordedTimes times;
   constexpr TimestampNs kMs = 1'000'000;
@@ -197,6 +209,57 @@ TEST(ByteLogFileStream, ALengthADamagedBitChangedIsNotBelieved) {
   EXPECT_EQ(text, std::string(20, 'a') + std::string(20, 'c') + std::string(20, 'd') +
                       std::string(20, 'e') + std::string(20, 'f'));
   EXPECT_EQ(stream.skipped_places(), 1u);
+  fs::remove(path);
+}
+
+TEST(ByteLogFileStream, ALengthDamagedOntoALaterRecordIsNotBelieved) {
+  constexpr int kRecords = 40;
+  std::string log = byte_log(kRecords, 20);
+  constexpr std::size_t kRecord = protocol::byte_log::kRecordHeaderBytes + 20;
+  // The second record says it runs to the 33rd's header: a header that reads well, 0.31 s on.
+  std::array<std::uint8_t, protocol::byte_log::kRecordHeaderBytes> header{};
+  protocol::byte_log::encode_record_header(
+      {1'010'000'000, 20 + 31 * kRecord, protocol::byte_log::Direction::kFromDevice}, header);
+  std::copy(header.begin(), header.end(), log.begin() + 8 + kRecord);
+  const fs::path path = write_temp("landing.bytelog", log);
+  ByteLogFileStream stream(path.string());
+  std::string expected(20, 'a');
+  for (int i = 2; i < kRecords; ++i) {
+    expected.append(20, static_cast<char>('a' + i));
+  }
+  EXPECT_EQ(read_all(stream), expected);
+  EXPECT_EQ(stream.skipped_places(), 1u);
+  EXPECT_EQ(stream.first_skip(), protocol::byte_log::ParseError::kBadLength);
+  fs::remove(path);
+}
+
+TEST(ByteLogFileStream, ADamagedMagicBeforeRecordsThatReadWellLosesNothingElse) {
+  std::string log = byte_log(3, 20);
+  log[2] = static_cast<char>(log[2] ^ 0x08);
+  const fs::path path = write_temp("magic.bytelog", log);
+  ByteLogFileStream stream(path.string());
+  ASSERT_TRUE(stream.ok()) << stream.error();
+  EXPECT_EQ(read_all(stream), std::string(20, 'a') + std::string(20, 'b') + std::string(20, 'c'));
+  EXPECT_EQ(stream.skipped_places(), 1u);
+  EXPECT_EQ(stream.skipped_bytes(), 8u);
+  EXPECT_EQ(stream.first_skip(), protocol::byte_log::ParseError::kBadMagic);
+  fs::remove(path);
+  // Text is not a byte log, whatever its first bytes.
+  const fs::path text = write_temp("text.bytelog", "(1156255200.010000) can0 400#01\n");
+  EXPECT_FALSE(ByteLogFileStream(text.string()).ok());
+  fs::remove(text);
+}
+
+TEST(ByteLogFileStream, ADamagedLastRecordIsOneMorePlaceSkipped) {
+  std::string log = byte_log(3, 20);
+  constexpr std::size_t kRecord = protocol::byte_log::kRecordHeaderBytes + 20;
+  log[8 + 2 * kRecord + 14] = 0x40;  // a reserved byte of the last header
+  const fs::path path = write_temp("last.bytelog", log);
+  ByteLogFileStream stream(path.string());
+  EXPECT_EQ(read_all(stream), std::string(20, 'a') + std::string(20, 'b'));
+  EXPECT_EQ(stream.damage(), protocol::byte_log::ParseError::kNone);
+  EXPECT_EQ(stream.skipped_places(), 1u);
+  EXPECT_EQ(stream.skipped_bytes(), kRecord);
   fs::remove(path);
 }
 

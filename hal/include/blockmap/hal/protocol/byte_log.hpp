@@ -46,6 +46,8 @@ enum class ParseError : std::uint8_t {
   kBadDirection,     // a direction other than 0 or 1
   kBadReserved,      // reserved bytes not zero (not a byte log, or a newer format)
   kTooLong,          // a record longer than kMaxRecordBytes
+  kBadLength,        // records start inside this one's bytes (found by a reader that looks)
+  kBadMagic,         // a file whose records read well but whose magic is damaged
 };
 [[nodiscard]] const char* to_string(ParseError error) noexcept;
 

@@ -56,9 +56,10 @@ class RecordedTimes {
                                                  std::span<const TimestampNs> next_ns) noexcept;
   [[nodiscard]] std::uint64_t faults() const noexcept { return faults_; }
   [[nodiscard]] std::uint64_t steps() const noexcept { return steps_; }
+  // Whether `later_ns` lies where a record's time after one at `earlier_ns` can.
+  [[nodiscard]] static bool follows(TimestampNs earlier_ns, TimestampNs later_ns) noexcept;
 
  private:
-  [[nodiscard]] static bool follows(TimestampNs earlier_ns, TimestampNs later_ns) noexcept;
   // Whether at least half of `next_ns` lie where they would after `stamp_ns`.
   [[nodiscard]] static bool most_follow(TimestampNs stamp_ns,
                                         std::span<const TimestampNs> next_ns) noexcept;
@@ -134,8 +135,9 @@ class FileByteStream final : public ByteStream {
 // caller's buffer holds) stamped with the record's receive time; the host's own writes are
 // skipped. A damaged record (a header that cannot be one) is skipped: the reader looks on for
 // the next place where two records in a row read well and carry times near the last good
-// one, and goes on from there, counting the places and bytes it skipped. Times are judged by
-// RecordedTimes. A log that ends inside a record ends with kIoError, reported by damage().
+// one, and goes on from there, counting the places and bytes it skipped (a damaged magic or
+// last record too). Times are judged by RecordedTimes. A log cut off inside a record ends
+// with kIoError, reported by damage().
 // One record is in memory at a time.
 class ByteLogFileStream final : public ByteStream {
  public:
@@ -165,19 +167,25 @@ class ByteLogFileStream final : public ByteStream {
   bool read_at(std::uint64_t offset, std::span<std::uint8_t> out) const;
   // The header at `offset` as read (error kEnd at the file's end).
   [[nodiscard]] Header header_at(std::uint64_t offset) const;
-  // Whether a record can start at `offset`: its header reads well and the record after it
-  // does too (or the file ends with it); with `near_ns`, their times lie near it and each
-  // other, as they must where the reader looks again after damage.
+  // Whether a record can start at `offset` where the reader looks again after damage: its
+  // header reads well and the record after it does too (or the file ends with it); with
+  // `near_ns`, their times lie near it and each other.
   [[nodiscard]] bool record_starts_at(std::uint64_t offset,
                                       std::optional<TimestampNs> near_ns) const;
   [[nodiscard]] static bool near(TimestampNs before_ns, TimestampNs stamp_ns) noexcept;
-  // The first place from `from` on where a record starts after damage, if any.
-  [[nodiscard]] std::optional<std::uint64_t> next_record_start(std::uint64_t from);
+  // The first place in [from, until) where a record starts after damage, if any.
+  [[nodiscard]] std::optional<std::uint64_t> next_record_start(std::uint64_t from,
+                                                               std::uint64_t until);
   // From the damaged place at offset_, on to the next place a record starts; false when none.
   bool resynchronise(protocol::byte_log::ParseError why);
-  // Whether the record at `offset`, whose header reads well but whose successor at `next`
-  // does not, is whole: no record starts inside it.
-  [[nodiscard]] bool reads_well_before_damage(std::uint64_t offset, std::uint64_t next);
+  // Counts the damaged place from offset_ to `to`.
+  void note_skip(protocol::byte_log::ParseError why, std::uint64_t to) noexcept;
+  // Why the record at `offset`, whose header reads well and whose successor starts at `next`,
+  // is not as long as it says; kNone when it is: the record after it reads well at a time
+  // that closely follows, or the file ends with it, or no record starts inside it.
+  [[nodiscard]] protocol::byte_log::ParseError length_fault(std::uint64_t offset,
+                                                            const Header& header,
+                                                            std::uint64_t next);
   // Loads the next device record; false at the end or on damage that ends the log.
   bool load_next();
 
