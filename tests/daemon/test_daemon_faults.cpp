@@ -256,6 +256,8 @@ TEST(DaemonFaults, UnpluggedCorruptedSilentAndFloodedDevicesAreCountedAndNothing
   EXPECT_GT(flooded.load(), 20000);
   EXPECT_GE((*base)["dropped"].get<int>(), flooded.load()) << base->dump();
   EXPECT_GE((*base)["messages"].get<int>(), 16 * 100 * 95 / 100) << base->dump();
+  EXPECT_EQ((*base)["implausible"].get<int>(), 0)
+      << "a foreign frame is not the base's: " << base->dump();
   for (const nlohmann::json* device : {vertical, horizontal, gps, base}) {
     EXPECT_EQ((*device)["state"], "up") << device->dump();
     EXPECT_EQ((*device)["rejected"].get<int>(), 0) << "the pipeline kept up: " << device->dump();
