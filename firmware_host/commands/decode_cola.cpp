@@ -6,15 +6,18 @@
 // payload (hex for CoLa B, text for CoLa A). Dropped candidates are {"error": reason, "offset": N}.
 //
 // The capture is raw bytes, or the JSON list of TCP segments that SICK's pcap_json_converter
-// writes (a file starting with '['), whose "tcp.payload" hex strings are joined in order; offsets
-// then count bytes of the joined payloads.
+// writes (its first byte that is not a space is '['), whose "tcp.payload" hex strings are
+// joined in order; offsets then count bytes of the joined payloads.
+#include <algorithm>
 #include <cctype>
 #include <cstdio>
 #include <memory>
 #include <numbers>
+#include <optional>
 #include <ostream>
 #include <span>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -28,15 +31,6 @@ namespace {
 
 namespace cola = hal::protocol::sick_cola;
 
-bool looks_like_json(const std::vector<std::uint8_t>& bytes) {
-  for (const std::uint8_t byte : bytes) {
-    if (std::isspace(byte) == 0) {
-      return byte == '[';
-    }
-  }
-  return false;
-}
-
 int hex_value(char c) {
   if (c >= '0' && c <= '9') return c - '0';
   if (c >= 'a' && c <= 'f') return c - 'a' + 10;
@@ -45,7 +39,7 @@ int hex_value(char c) {
 }
 
 // "02:02:02:02:00:..." appended to `stream`; false when it is not colon-separated hex.
-bool append_hex(const std::string& text, std::vector<std::uint8_t>& stream) {
+bool append_hex(std::string_view text, std::vector<std::uint8_t>& stream) {
   for (std::size_t i = 0; i < text.size(); i += 3) {
     const int high = hex_value(text[i]);
     const int low = i + 1 < text.size() ? hex_value(text[i + 1]) : -1;
@@ -57,40 +51,93 @@ bool append_hex(const std::string& text, std::vector<std::uint8_t>& stream) {
   return true;
 }
 
-// The joined "tcp.payload" strings of the list, in order. They are found in the text itself,
-// not through a JSON parser, so that a damaged byte costs only the segment it falls in: a
-// payload that is not colon-separated hex is left out and counted.
-struct Payloads {
-  std::size_t segments = 0;
-  std::size_t damaged = 0;
-  std::size_t first_damaged = 0;  // 1-based, among the segments
-};
-
-Payloads payloads_of_json(const Capture& capture, std::vector<std::uint8_t>& stream) {
-  const std::string_view text(reinterpret_cast<const char*>(capture.bytes.data()),
-                              capture.bytes.size());
-  constexpr std::string_view kKey = "\"tcp.payload\"";
-  Payloads payloads;
-  std::vector<std::uint8_t> piece;
-  for (std::size_t at = text.find(kKey); at != std::string_view::npos; at = text.find(kKey, at)) {
-    ++payloads.segments;
-    at = text.find_first_not_of(" \t\r\n", at + kKey.size());
-    const bool colon = at != std::string_view::npos && text[at] == ':';
-    const std::size_t open = colon ? text.find_first_not_of(" \t\r\n", at + 1) : at;
-    const bool quoted = colon && open != std::string_view::npos && text[open] == '"';
-    const std::size_t close = quoted ? text.find('"', open + 1) : std::string_view::npos;
-    piece.clear();
-    if (close == std::string_view::npos ||
-        !append_hex(std::string(text.substr(open + 1, close - open - 1)), piece)) {
-      payloads.first_damaged = payloads.damaged == 0 ? payloads.segments : payloads.first_damaged;
-      ++payloads.damaged;
-      continue;
+// The joined "tcp.payload" strings of the list, in order, found piece by piece in the text
+// itself, not through a JSON parser, so that a damaged byte costs only the segment it falls
+// in: a payload that is not colon-separated hex is left out and counted.
+class JsonPayloads {
+ public:
+  // The bytes of the payloads `text` completes (valid until the next call); at the end, a
+  // payload still open is a damaged one.
+  std::span<const std::uint8_t> feed(std::span<const std::uint8_t> text, bool at_end) {
+    text_.append(reinterpret_cast<const char*>(text.data()), text.size());
+    bytes_.clear();
+    std::size_t decided = 0;  // the text before it needs no more looking at
+    for (;;) {
+      const std::size_t key_at = std::string_view(text_).find(kKey, decided);
+      if (key_at == std::string_view::npos) {
+        // Keep what could be the start of a key.
+        const std::size_t keep = at_end ? 0 : std::min(text_.size(), kKey.size() - 1);
+        decided = std::max(decided, text_.size() - keep);
+        break;
+      }
+      std::size_t open = 0;
+      std::size_t close = 0;
+      const Found found = payload_at(key_at, at_end, open, close, decided);
+      if (found == Found::kNeedMore) {
+        decided = key_at;
+        break;
+      }
+      ++segments_;
+      piece_.clear();
+      if (found == Found::kPayload &&
+          append_hex(std::string_view(text_).substr(open + 1, close - open - 1), piece_)) {
+        bytes_.insert(bytes_.end(), piece_.begin(), piece_.end());
+        decided = close + 1;
+        continue;
+      }
+      first_damaged_ = damaged_ == 0 ? segments_ : first_damaged_;
+      ++damaged_;
     }
-    stream.insert(stream.end(), piece.begin(), piece.end());
-    at = close + 1;
+    text_.erase(0, decided);
+    return bytes_;
   }
-  return payloads;
-}
+  [[nodiscard]] std::size_t segments() const noexcept { return segments_; }
+  [[nodiscard]] std::size_t damaged() const noexcept { return damaged_; }
+  [[nodiscard]] std::size_t first_damaged() const noexcept { return first_damaged_; }  // 1-based
+
+ private:
+  enum class Found { kPayload, kDamaged, kNeedMore };
+  static constexpr std::string_view kKey = "\"tcp.payload\"";
+  static constexpr std::string_view kSpace = " \t\r\n";
+  // A segment's payload is far shorter: an unclosed string this long is a damaged one.
+  static constexpr std::size_t kMaxPayloadTextBytes = std::size_t{1} << 22;
+
+  // What follows the key at `key_at`: a payload between the quotes at `open` and `close`, a
+  // damaged one (the next key is looked for from `resume`), or not yet known.
+  Found payload_at(std::size_t key_at, bool at_end, std::size_t& open, std::size_t& close,
+                   std::size_t& resume) const {
+    const std::string_view text(text_);
+    const std::size_t at = text.find_first_not_of(kSpace, key_at + kKey.size());
+    if (at == std::string_view::npos) {
+      resume = text.size();
+      return at_end ? Found::kDamaged : Found::kNeedMore;
+    }
+    resume = at;
+    if (text[at] != ':') {
+      return Found::kDamaged;
+    }
+    open = text.find_first_not_of(kSpace, at + 1);
+    if (open == std::string_view::npos) {
+      return at_end ? Found::kDamaged : Found::kNeedMore;
+    }
+    if (text[open] != '"') {
+      return Found::kDamaged;
+    }
+    close = text.find('"', open + 1);
+    if (close == std::string_view::npos) {
+      return at_end || text.size() - open > kMaxPayloadTextBytes ? Found::kDamaged
+                                                                 : Found::kNeedMore;
+    }
+    return Found::kPayload;
+  }
+
+  std::string text_;  // from the first byte not yet decided
+  std::vector<std::uint8_t> piece_;
+  std::vector<std::uint8_t> bytes_;
+  std::size_t segments_ = 0;
+  std::size_t damaged_ = 0;
+  std::size_t first_damaged_ = 0;
+};
 
 std::string payload_text(const cola::Telegram& telegram) {
   std::string text;
@@ -126,7 +173,7 @@ void add_scan(Json& line, const msg::LaserScan& scan, const cola::ScanInfo& info
   }
 }
 
-void print_step(const cola::Decoder::Step& step, const Capture& capture, std::ostream& out) {
+void print_step(const cola::Decoder::Step& step, const CaptureReader& capture, std::ostream& out) {
   Json line;
   if (step.telegram != nullptr) {
     const cola::Telegram& telegram = *step.telegram;
@@ -149,29 +196,46 @@ void print_step(const cola::Decoder::Step& step, const Capture& capture, std::os
   out << line.dump() << '\n';
 }
 
+// Whether a capture whose first piece is `first` is SICK's JSON list: its first byte that is
+// not a space is '[' (a first piece of spaces only is a raw stream).
+bool looks_like_json(std::span<const std::uint8_t> first) {
+  const auto byte =
+      std::find_if(first.begin(), first.end(), [](std::uint8_t b) { return std::isspace(b) == 0; });
+  return byte != first.end() && *byte == '[';
+}
+
+void decode_bytes(cola::Decoder& decoder, std::span<const std::uint8_t> rest, TimestampNs stamp_ns,
+                  const CaptureReader& capture, std::ostream& out) {
+  for (;;) {
+    const cola::Decoder::Step step = decoder.push(rest, stamp_ns);
+    rest = rest.subspan(step.consumed);
+    print_step(step, capture, out);
+    if (rest.empty() && !step.has_event()) {
+      break;
+    }
+  }
+}
+
 }  // namespace
 
-int decode_cola(const Capture& capture, std::ostream& out, std::ostream& err) {
-  std::vector<std::uint8_t> joined;
-  const bool json = looks_like_json(capture.bytes);
-  Payloads payloads;
-  if (json) {
-    payloads = payloads_of_json(capture, joined);
-  }
-  const std::vector<std::uint8_t>& bytes = json ? joined : capture.bytes;
+int decode_cola(CaptureReader& capture, std::ostream& out, std::ostream& err) {
   // Offline decoding may allocate: the decoder lives on the heap, not on a small stack.
   auto decoder = std::make_unique<cola::StaticDecoder<>>();
-  const std::vector<Chunk> whole = {{0, bytes.size(), 0}};
-  for (const Chunk& chunk : json ? whole : capture.chunks) {
-    std::span<const std::uint8_t> rest(bytes.data() + chunk.offset, chunk.length);
-    for (;;) {
-      const cola::Decoder::Step step = decoder->push(rest, chunk.stamp_ns);
-      rest = rest.subspan(step.consumed);
-      print_step(step, capture, out);
-      if (rest.empty() && !step.has_event()) {
-        break;
-      }
+  std::optional<JsonPayloads> json;
+  std::span<const std::uint8_t> piece;
+  TimestampNs stamp_ns = 0;
+  for (bool first = true; capture.next(piece, stamp_ns); first = false) {
+    if (first && looks_like_json(piece)) {
+      json.emplace();
     }
+    if (json) {
+      decode_bytes(*decoder, json->feed(piece, false), 0, capture, out);
+    } else {
+      decode_bytes(*decoder, piece, stamp_ns, capture, out);
+    }
+  }
+  if (json) {
+    decode_bytes(*decoder, json->feed({}, true), 0, capture, out);
   }
   for (;;) {  // the end of the capture: a telegram cut off there is reported as truncated
     const cola::Decoder::Step step = decoder->flush();
@@ -185,10 +249,10 @@ int decode_cola(const Capture& capture, std::ostream& out, std::ostream& err) {
   print_drops(err, decoder->drops());
   err << ", " << decoder->dropped_bytes() << " bytes dropped";
   if (json) {
-    err << "; " << payloads.segments << " TCP segments, " << payloads.damaged
+    err << "; " << json->segments() << " TCP segments, " << json->damaged()
         << " damaged and left out";
-    if (payloads.damaged > 0) {
-      err << " (the first: segment " << payloads.first_damaged << ")";
+    if (json->damaged() > 0) {
+      err << " (the first: segment " << json->first_damaged() << ")";
     }
   }
   err << '\n';

@@ -62,7 +62,7 @@ void add_scan(Json& line, const lms::Telegram& telegram) {
   line["ranges_m"] = ranges_json(scan, 3);  // millimetres at most: three decimals are exact
 }
 
-Json telegram_json(const lms::Telegram& telegram, const Capture& capture) {
+Json telegram_json(const lms::Telegram& telegram, const CaptureReader& capture) {
   Json line;
   add_time(line, capture, telegram.stamp_ns);
   line["offset"] = telegram.start_offset;
@@ -79,7 +79,7 @@ Json telegram_json(const lms::Telegram& telegram, const Capture& capture) {
 }
 
 // One line for a step with an event; nothing for kNone.
-void print_step(const lms::Decoder::Step& step, const Capture& capture, std::ostream& out) {
+void print_step(const lms::Decoder::Step& step, const CaptureReader& capture, std::ostream& out) {
   using Event = lms::Decoder::Event;
   Json line;
   switch (step.event) {
@@ -103,12 +103,14 @@ void print_step(const lms::Decoder::Step& step, const Capture& capture, std::ost
 
 }  // namespace
 
-int decode_lms2xx(const Capture& capture, std::ostream& out, std::ostream& err) {
+int decode_lms2xx(CaptureReader& capture, std::ostream& out, std::ostream& err) {
   lms::Decoder decoder;
-  for (const Chunk& chunk : capture.chunks) {
-    std::span<const std::uint8_t> rest(capture.bytes.data() + chunk.offset, chunk.length);
+  std::span<const std::uint8_t> piece;
+  TimestampNs stamp_ns = 0;
+  while (capture.next(piece, stamp_ns)) {
+    std::span<const std::uint8_t> rest = piece;
     for (;;) {
-      const lms::Decoder::Step step = decoder.push(rest, chunk.stamp_ns);
+      const lms::Decoder::Step step = decoder.push(rest, stamp_ns);
       rest = rest.subspan(step.consumed);
       print_step(step, capture, out);
       if (step.event == lms::Decoder::Event::kNone) {

@@ -69,16 +69,19 @@ bool carries_position_or_time(hal::protocol::nmea::SentenceType type) {
 
 }  // namespace
 
-int decode_nmea(const Capture& capture, std::ostream& out, std::ostream& err) {
+int decode_nmea(CaptureReader& capture, std::ostream& out, std::ostream& err) {
   namespace nmea = hal::protocol::nmea;
-  const LineIndex lines(capture.bytes);
+  LineCounter lines;
   nmea::Decoder decoder;
   // The keys are a contract (docs/formats.md, decoded NMEA): a timed capture's receive times
   // are not added; the sentences carry their own UTC.
-  for (const Chunk& chunk : capture.chunks) {
-    std::span<const std::uint8_t> rest(capture.bytes.data() + chunk.offset, chunk.length);
+  std::span<const std::uint8_t> piece;
+  TimestampNs stamp_ns = 0;
+  while (capture.next(piece, stamp_ns)) {
+    lines.feed(piece);
+    std::span<const std::uint8_t> rest = piece;
     while (!rest.empty()) {
-      const nmea::Decoder::Step step = decoder.push(rest, chunk.stamp_ns);
+      const nmea::Decoder::Step step = decoder.push(rest, stamp_ns);
       rest = rest.subspan(step.consumed);
       if (step.sentence != nullptr && carries_position_or_time(step.sentence->type)) {
         out << nmea_json(*step.sentence).dump() << '\n';

@@ -1,7 +1,11 @@
 // `blockmap decode rmp`: a Segway RMP CAN log (candump format, or Orca's "id:0401 FF F9 ..."
 // lines) as one JSON object per RMP frame, in SI units; unparsable lines and rejected frames as
 // {"error": reason, "line": N}.
+#include <algorithm>
+#include <cstdio>
 #include <ostream>
+#include <span>
+#include <string>
 #include <string_view>
 
 #include "blockmap/hal/protocol/candump.hpp"
@@ -68,19 +72,51 @@ candump::ParseError parse_any_line(std::string_view text, candump::Record& recor
   return candump::parse_line(text, record);
 }
 
+// A capture's lines, read piece by piece: each once, the last one even without its newline;
+// a line is kept up to kMaxLineBytes (a candump line is under a hundred).
+class Lines {
+ public:
+  explicit Lines(CaptureReader& capture) : capture_(capture) {}
+  bool next(std::string_view& line) {
+    line_.clear();
+    for (;;) {
+      if (rest_.empty()) {
+        TimestampNs unused_ns = 0;
+        if (ended_ || !capture_.next(rest_, unused_ns)) {
+          ended_ = true;
+          line = line_;
+          return !line_.empty();
+        }
+      }
+      const auto newline = std::find(rest_.begin(), rest_.end(), '\n');
+      const bool whole = newline != rest_.end();
+      const auto length = static_cast<std::size_t>(newline - rest_.begin());
+      const std::size_t room = kMaxLineBytes - std::min(kMaxLineBytes, line_.size());
+      line_.append(reinterpret_cast<const char*>(rest_.data()), std::min(length, room));
+      rest_ = rest_.subspan(whole ? length + 1 : length);
+      if (whole) {
+        line = line_;
+        return true;
+      }
+    }
+  }
+
+ private:
+  static constexpr std::size_t kMaxLineBytes = std::size_t{1} << 16;
+  CaptureReader& capture_;
+  std::span<const std::uint8_t> rest_;
+  std::string line_;
+  bool ended_ = false;
+};
+
 }  // namespace
 
-int decode_rmp(const Capture& capture, std::ostream& out, std::ostream& err) {
+int decode_rmp(CaptureReader& capture, std::ostream& out, std::ostream& err) {
   rmp::Decoder decoder;
-  const std::string_view text(reinterpret_cast<const char*>(capture.bytes.data()),
-                              capture.bytes.size());
+  Lines lines(capture);
   std::size_t line_number = 0;
   std::size_t frames = 0;
-  std::size_t start = 0;
-  while (start < text.size()) {
-    const std::size_t end = std::min(text.find('\n', start), text.size());
-    const std::string_view line_text = text.substr(start, end - start);
-    start = end + 1;
+  for (std::string_view line_text; lines.next(line_text);) {
     ++line_number;
     candump::Record record;
     const candump::ParseError parsed = parse_any_line(line_text, record);

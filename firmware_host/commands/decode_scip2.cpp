@@ -11,22 +11,26 @@
 
 namespace blockmap::cli {
 
-int decode_scip2(const Capture& capture, std::ostream& out, std::ostream& err) {
+int decode_scip2(CaptureReader& capture, std::ostream& out, std::ostream& err) {
   namespace scip2 = hal::protocol::hokuyo_scip2;
-  const LineIndex lines(capture.bytes);
+  LineCounter lines;
   scip2::Decoder decoder;
-  for (const Chunk& chunk : capture.chunks) {
-    std::span<const std::uint8_t> rest(capture.bytes.data() + chunk.offset, chunk.length);
+  std::span<const std::uint8_t> piece;
+  TimestampNs stamp_ns = 0;
+  std::uint64_t piece_offset = 0;  // of the piece in the stream
+  for (; capture.next(piece, stamp_ns); piece_offset += piece.size()) {
+    lines.feed(piece);
+    std::span<const std::uint8_t> rest = piece;
     while (!rest.empty()) {
-      const std::size_t offset = chunk.offset + chunk.length - rest.size();
-      const scip2::Decoder::Step step = decoder.push(rest, chunk.stamp_ns);
+      const std::uint64_t offset = piece_offset + piece.size() - rest.size();
+      const scip2::Decoder::Step step = decoder.push(rest, stamp_ns);
       rest = rest.subspan(step.consumed);
       Json line;
       if (step.rejected) {
         line["error"] = scip2::to_string(step.reason);
         line["line"] = lines.line_of(offset + step.consumed - 1);
       } else if (step.reply != nullptr) {
-        add_time(line, capture, step.scan != nullptr ? step.scan->header.stamp_ns : chunk.stamp_ns);
+        add_time(line, capture, step.scan != nullptr ? step.scan->header.stamp_ns : stamp_ns);
         line["command"] = std::string(step.reply->echo);
         line["status"] = std::string(step.reply->status);
         if (step.scan != nullptr) {

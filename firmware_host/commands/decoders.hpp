@@ -1,13 +1,15 @@
-// The protocol decoders behind `blockmap decode`: each turns a whole capture into JSON Lines on
-// `out` (one message a line, decoding errors as {"error": ..., "line"/"offset": ...} lines) and
-// prints a one-line summary of what it dropped, and why, on `err`. Adding a protocol is a file
+// The protocol decoders behind `blockmap decode`: each turns a capture, read piece by piece,
+// into JSON Lines on `out` (one message a line, decoding errors as {"error": ...,
+// "line"/"offset": ...} lines) and prints a one-line summary of what it dropped, and why, on
+// `err`, in memory that does not grow with the capture. Adding a protocol is a file
 // decode_<name>.cpp and one entry in kDecoders (decode.cpp).
 #pragma once
 
 #include <cstdint>
+#include <deque>
 #include <iosfwd>
+#include <span>
 #include <string>
-#include <vector>
 
 #include <nlohmann/json.hpp>
 #include <ostream>
@@ -15,47 +17,37 @@
 #include "blockmap/core/time.hpp"
 #include "blockmap/hal/protocol/drop_counters.hpp"
 #include "blockmap/msg/laser_scan.hpp"
+#include "commands/capture_reader.hpp"
 
 namespace blockmap::cli {
 
 using Json = nlohmann::ordered_json;
 
-// Bytes as one read returned them, and when (a timestamped byte log, docs/log-formats.md).
-struct Chunk {
-  std::size_t offset = 0;  // into Capture::bytes
-  std::size_t length = 0;
-  TimestampNs stamp_ns = 0;
-};
-
-// A whole capture: a raw byte stream (one chunk, no time), or the device-to-host bytes of a
-// timestamped byte log, chunk by chunk (`timed`).
-struct Capture {
-  std::string path;
-  std::vector<std::uint8_t> bytes;
-  std::vector<Chunk> chunks;
-  bool timed = false;
-  std::size_t host_records = 0;  // host-to-device records of a byte log (not decoded)
-};
-
 // A decoded message's time in a timed capture: Unix seconds with microseconds.
-void add_time(Json& line, const Capture& capture, TimestampNs stamp_ns);
+void add_time(Json& line, const CaptureReader& capture, TimestampNs stamp_ns);
 
-using DecoderFunction = int (*)(const Capture& capture, std::ostream& out, std::ostream& err);
+using DecoderFunction = int (*)(CaptureReader& capture, std::ostream& out, std::ostream& err);
 
-int decode_nmea(const Capture& capture, std::ostream& out, std::ostream& err);
-int decode_rmp(const Capture& capture, std::ostream& out, std::ostream& err);
-int decode_scip2(const Capture& capture, std::ostream& out, std::ostream& err);
-int decode_lms2xx(const Capture& capture, std::ostream& out, std::ostream& err);
-int decode_cola(const Capture& capture, std::ostream& out, std::ostream& err);
+int decode_nmea(CaptureReader& capture, std::ostream& out, std::ostream& err);
+int decode_rmp(CaptureReader& capture, std::ostream& out, std::ostream& err);
+int decode_scip2(CaptureReader& capture, std::ostream& out, std::ostream& err);
+int decode_lms2xx(CaptureReader& capture, std::ostream& out, std::ostream& err);
+int decode_cola(CaptureReader& capture, std::ostream& out, std::ostream& err);
 
-// 1-based line of a byte offset, for error reports that point into a text capture.
-class LineIndex {
+// The 1-based line of a byte offset of a text capture fed piece by piece, for error reports;
+// exact for offsets in the last kLookBackBytes fed (a decoder reports where a sentence it
+// rejects began, never further back).
+class LineCounter {
  public:
-  explicit LineIndex(const std::vector<std::uint8_t>& bytes);
+  // The next piece of the stream, before it is decoded.
+  void feed(std::span<const std::uint8_t> bytes);
   [[nodiscard]] std::size_t line_of(std::uint64_t offset) const;
 
  private:
-  std::vector<std::size_t> newlines_;
+  static constexpr std::uint64_t kLookBackBytes = std::uint64_t{1} << 16;
+  std::deque<std::uint64_t> newlines_;  // the offsets of those in the last kLookBackBytes
+  std::size_t older_ = 0;               // newlines before them
+  std::uint64_t fed_ = 0;
 };
 
 // Appends ", reason count" for every drop reason with a non-zero count: the tail of each

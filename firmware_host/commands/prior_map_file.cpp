@@ -14,7 +14,7 @@
 namespace blockmap::cli {
 namespace {
 
-using Json = nlohmann::json;
+using JsonValue = nlohmann::json;
 
 // A plane list's planes within 10 degrees of vertical, 1 m wide or more and seen well are
 // walls seen. A stray piece of a few hundred returns far off the route would stretch the
@@ -24,7 +24,7 @@ constexpr double kMinSeenWallM = 1.0;
 constexpr double kMinSeenReturns = 1000.0;
 
 // A position [longitude, latitude(, height)] in the local frame.
-Eigen::Vector2d local_of(const Json& position, const hal::LocalEnuFrame& frame) {
+Eigen::Vector2d local_of(const JsonValue& position, const hal::LocalEnuFrame& frame) {
   if (!position.is_array() || position.size() < 2 || !position[0].is_number() ||
       !position[1].is_number()) {
     throw std::runtime_error("a position is not [longitude, latitude]");
@@ -40,7 +40,7 @@ Eigen::Vector2d local_of(const Json& position, const hal::LocalEnuFrame& frame) 
 }
 
 // Each consecutive pair of a line's positions is a wall; a polygon's rings enclose.
-void add_line(const Json& positions, const hal::LocalEnuFrame& frame, bool ring,
+void add_line(const JsonValue& positions, const hal::LocalEnuFrame& frame, bool ring,
               std::vector<localize::MapWall>& walls) {
   if (!positions.is_array()) {
     throw std::runtime_error("a line's coordinates are not an array");
@@ -50,36 +50,36 @@ void add_line(const Json& positions, const hal::LocalEnuFrame& frame, bool ring,
   }
 }
 
-void add_geometry(const Json& geometry, const hal::LocalEnuFrame& frame,
+void add_geometry(const JsonValue& geometry, const hal::LocalEnuFrame& frame,
                   std::vector<localize::MapWall>& walls) {
   const std::string type = geometry.value("type", "");
   if (type == "GeometryCollection") {
-    for (const Json& part : geometry.at("geometries")) {
+    for (const JsonValue& part : geometry.at("geometries")) {
       add_geometry(part, frame, walls);
     }
     return;
   }
-  const Json& coordinates = geometry.at("coordinates");
+  const JsonValue& coordinates = geometry.at("coordinates");
   if (type == "LineString") {
     add_line(coordinates, frame, false, walls);
   } else if (type == "MultiLineString" || type == "Polygon") {
-    for (const Json& line : coordinates) {
+    for (const JsonValue& line : coordinates) {
       add_line(line, frame, type == "Polygon", walls);
     }
   } else if (type == "MultiPolygon") {
-    for (const Json& polygon : coordinates) {
-      for (const Json& ring : polygon) {
+    for (const JsonValue& polygon : coordinates) {
+      for (const JsonValue& ring : polygon) {
         add_line(ring, frame, true, walls);
       }
     }
   }  // points have no walls
 }
 
-void add_geojson(const Json& document, const hal::LocalEnuFrame& frame,
+void add_geojson(const JsonValue& document, const hal::LocalEnuFrame& frame,
                  std::vector<localize::MapWall>& walls) {
   const std::string type = document.value("type", "");
   if (type == "FeatureCollection") {
-    for (const Json& feature : document.at("features")) {
+    for (const JsonValue& feature : document.at("features")) {
       add_geojson(feature, frame, walls);
     }
   } else if (type == "Feature") {
@@ -91,7 +91,7 @@ void add_geojson(const Json& document, const hal::LocalEnuFrame& frame,
   }
 }
 
-Eigen::Vector2d point_of(const Json& xy) {
+Eigen::Vector2d point_of(const JsonValue& xy) {
   if (!xy.is_array() || xy.size() < 2 || !xy[0].is_number() || !xy[1].is_number()) {
     throw std::runtime_error("a footprint's corner is not [x, y]");
   }
@@ -100,9 +100,9 @@ Eigen::Vector2d point_of(const Json& xy) {
 
 // buildings.json: the footprints a run fitted (closed: their unseen walls are the fitter's
 // guess, but what they enclose is a building).
-void add_buildings(const Json& document, std::vector<localize::MapWall>& walls) {
-  for (const Json& building : document.at("buildings")) {
-    const Json& footprint = building.at("footprint");
+void add_buildings(const JsonValue& document, std::vector<localize::MapWall>& walls) {
+  for (const JsonValue& building : document.at("buildings")) {
+    const JsonValue& footprint = building.at("footprint");
     for (std::size_t k = 0; footprint.size() >= 3 && k < footprint.size(); ++k) {
       walls.push_back(
           {point_of(footprint[k]), point_of(footprint[(k + 1) % footprint.size()]), true});
@@ -113,7 +113,7 @@ void add_buildings(const Json& document, std::vector<localize::MapWall>& walls) 
 // planes.json: the vertical planes a run saw (walls, and what stands in front of them: a
 // hedge, a fence), each its extent seen from above. They enclose nothing; a run's
 // footprints, given beside them, say what is solid.
-void add_planes_seen(const Json& document, std::vector<localize::MapWall>& walls) {
+void add_planes_seen(const JsonValue& document, std::vector<localize::MapWall>& walls) {
   const double min_horizontal_normal = std::cos(kMaxWallTiltDeg * std::numbers::pi / 180.0);
   for (const msg::PlanePatch& plane : planes_from_json(document)) {
     const Eigen::Vector2d across = plane.normal.head<2>();
@@ -149,7 +149,7 @@ std::vector<localize::MapWall> read_prior_map(const std::string& path,
     return walls;
   }
   std::ifstream in(path);
-  const Json document = Json::parse(in, nullptr, false);
+  const JsonValue document = JsonValue::parse(in, nullptr, false);
   if (document.is_discarded() || !document.is_object()) {
     error = path + " is not a JSON object (GeoJSON, buildings.json or planes.json)";
     return walls;

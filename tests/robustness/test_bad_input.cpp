@@ -208,6 +208,23 @@ std::string case_name(const ::testing::TestParamInfo<Case>& param) {
 
 INSTANTIATE_TEST_SUITE_P(Commands, BadInput, ::testing::ValuesIn(kCases), case_name);
 
+TEST(Streams, DecodeReadsACaptureOfAnyLengthInConstantMemory) {
+  const fs::path dir = scratch("robust_stream");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  // 128 MiB of zeros (a sparse file: no disk taken), read through the NMEA decoder.
+  constexpr std::uintmax_t kBytes = std::uintmax_t{1} << 27;
+  std::ofstream(dir / "zeros.bin").close();
+  fs::resize_file(dir / "zeros.bin", kBytes);
+  const ProcessResult r =
+      run_process(BLOCKMAP_EXE, {"decode", "nmea", "zeros.bin"}, dir, limits(120.0));
+  ASSERT_TRUE(r.exited) << r.err;
+  EXPECT_EQ(r.status, kOk) << r.err;
+  EXPECT_NE(r.err.find("garbage " + std::to_string(kBytes)), std::string::npos) << r.err;
+  EXPECT_LT(r.peak_rss_bytes, std::size_t{64} << 20) << "the capture was held, not streamed";
+  fs::remove_all(dir);
+}
+
 class Writes : public ::testing::Test {
  protected:
   void SetUp() override {
