@@ -126,11 +126,13 @@ class TimeMerge {
       have_scan_[i] = run_.next_scan(i, *scans_[i]);
     }
   }
-  // Hands the oldest message to `mapper`; false when every log is done.
+  // Whether the base's log has a status group at all.
+  [[nodiscard]] bool has_base() const noexcept { return have_base_; }
   // The span of the messages handed over, s.
   [[nodiscard]] double span_s() const noexcept {
     return last_ns_ > first_ns_ ? seconds_from_ns(last_ns_ - first_ns_) : 0.0;
   }
+  // Hands the oldest message to `mapper`; false when every log is done.
   bool feed_next(pipeline::Mapper& mapper) {
     constexpr TimestampNs kNever = std::numeric_limits<TimestampNs>::max();
     const TimestampNs base_ns = have_base_ ? odometry_.header.stamp_ns : kNever;
@@ -229,13 +231,23 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
       return kExitFailure;
     }
     base_config = hal::config::segway_base_config_for(robot);
-    // A laser the logger did not record (an import from odometry and GPS) is left out.
+    // A laser the logger did not record (an import from odometry and GPS), or whose log cannot
+    // be read as one, is left out: the run goes on without it.
     std::erase_if(robot.lasers, [&](const hal::config::LaserSpec& laser) {
-      const bool recorded = fs::exists(dir / ("laser_" + laser.name + ".bytelog"));
-      if (!recorded && map_planes) {
-        err << "replay: no laser_" << laser.name << ".bytelog: mapping without that laser\n";
+      const fs::path log = dir / ("laser_" + laser.name + ".bytelog");
+      if (!fs::exists(log)) {
+        if (map_planes) {
+          err << "replay: no laser_" << laser.name << ".bytelog: mapping without that laser\n";
+        }
+        return true;
       }
-      return !recorded;
+      if (const hal::replay::ByteLogFileStream stream(log.string()); !stream.ok()) {
+        if (map_planes) {
+          err << "replay: warning: " << stream.error() << ": mapping without that laser\n";
+        }
+        return true;
+      }
+      return false;
     });
     config = hal::config::mapper_config_for(robot);
   }
@@ -340,6 +352,12 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
   }
 
   TimeMerge merge(*run, *fixes, true_poses);
+  if (!merge.has_base() && true_poses.empty()) {
+    // The localizer moves the robot by its wheels: without them nothing can be placed.
+    err << "blockmap: replay: rmp.candump holds no status group of the base: nothing to map "
+           "from\n";
+    return kExitFailure;
+  }
   while (merge.feed_next(session->mapper())) {
     session->pump();
   }
@@ -398,7 +416,8 @@ int replay(const ReplayOptions& options, std::ostream& out, std::ostream& err) {
     }
   }
   if (session->outputs().trajectory_rows() == 0) {
-    err << "blockmap: replay: no pose: the logs have no odometry, or no usable GPS fix\n";
+    err << "blockmap: replay: no pose: gps.nmea holds no usable fix (--origin and --start-pose "
+           "place the robot without one)\n";
     return kExitFailure;
   }
   return damaged ? kExitFailure : kExitOk;

@@ -8,12 +8,20 @@
 #include <cerrno>
 #include <string_view>
 #include <system_error>
+#include <utility>
 
+#include "blockmap/hal/files.hpp"
 #include "blockmap/hal/protocol/candump.hpp"
 
 namespace blockmap::hal::replay {
 
-LogFile::LogFile(const std::string& path) : file_(std::fopen(path.c_str(), "rb")) {
+LogFile::LogFile(const std::string& path) {
+  // A folder opens, and reads as an error later: it is refused here, by name.
+  if (std::string problem = unreadable_file(path); !problem.empty()) {
+    error_ = std::move(problem);
+    return;
+  }
+  file_ = std::fopen(path.c_str(), "rb");
   if (file_ == nullptr) {
     error_ = path + ": " + std::generic_category().message(errno);
   }

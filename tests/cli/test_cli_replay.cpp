@@ -487,8 +487,20 @@ TEST(ReplayCommandInput, BadInputGetsOneClearLine) {
   result = run_cli({"replay", folder.string()});
   EXPECT_EQ(result.status, kExitFailure);
   EXPECT_NE(result.err.find("gps.nmea"), std::string::npos) << result.err;
-  // Logs without a usable fix give no pose, and say so.
+  // A CAN log without a whole status group gives nothing to map from, and says so.
   std::ofstream(folder / "gps.nmea") << "$GPGGA,140000.25,,,,,0,00,99.9,,M,,M,,*5D\r\n";
+  result = run_cli({"replay", folder.string()});
+  EXPECT_EQ(result.status, kExitFailure);
+  EXPECT_NE(result.err.find("no status group of the base"), std::string::npos) << result.err;
+  // Odometry without a usable fix gives no pose, and says so.
+  std::ofstream(folder / "rmp.candump") << "(1156255200.010000) can0 400#0000000000000000\n"
+                                           "(1156255200.010250) can0 401#FFFD0008FFF7FFFF\n"
+                                           "(1156255200.010500) can0 402#00010001FFFC0001\n"
+                                           "(1156255200.010750) can0 403#0001000000010000\n"
+                                           "(1156255200.011000) can0 404#0001000000000000\n"
+                                           "(1156255200.011250) can0 405#1483148300000000\n"
+                                           "(1156255200.011500) can0 406#0002000001E00124\n"
+                                           "(1156255200.011750) can0 407#0000000000000000\n";
   result = run_cli({"replay", folder.string()});
   EXPECT_EQ(result.status, kExitFailure);
   EXPECT_NE(result.err.find("no pose"), std::string::npos) << result.err;

@@ -113,6 +113,60 @@ TEST_F(DamagedLogs, OneCorruptRecordOfEachKindMapsAsTheWholeLogDoesAndIsReported
   }
 }
 
+// A log missing, empty or not a file: one line, and the run goes on when it can.
+struct LogFault {
+  const char* what;
+  const char* log;
+  enum { kRemove, kEmpty, kFolder, kNoise } fault;
+  int status;
+  const char* says;  // in the last line for a failure, in a warning for a success
+};
+
+TEST_F(DamagedLogs, ALogMissingEmptyOrNotAFileIsOneLine) {
+  const LogFault faults[] = {
+      {"no CAN log", "rmp.candump", LogFault::kRemove, 1, "rmp.candump: cannot open"},
+      {"an empty CAN log", "rmp.candump", LogFault::kEmpty, 1, "no status group of the base"},
+      {"noise for a CAN log", "rmp.candump", LogFault::kNoise, 1, "no status group of the base"},
+      {"a folder for the CAN log", "rmp.candump", LogFault::kFolder, 1, "is a folder"},
+      {"a folder for the NMEA log", "gps.nmea", LogFault::kFolder, 1, "is a folder"},
+      {"an empty NMEA log", "gps.nmea", LogFault::kEmpty, 1, "holds no usable fix"},
+      {"an empty laser log", "laser_vertical.bytelog", LogFault::kEmpty, 0,
+       "mapping without that laser"},
+      {"noise for a laser log", "laser_vertical.bytelog", LogFault::kNoise, 0,
+       "mapping without that laser"},
+  };
+  std::mt19937 draw(3);
+  for (const LogFault& f : faults) {
+    SCOPED_TRACE(f.what);
+    const fs::path logs = dir_ / "fault";
+    fs::remove_all(logs);
+    fs::copy(dir_ / "log", logs);
+    fs::remove(logs / f.log);
+    if (f.fault == LogFault::kFolder) {
+      fs::create_directories(logs / f.log);
+    } else if (f.fault != LogFault::kRemove) {
+      std::string bytes(f.fault == LogFault::kNoise ? 4096 : 0, '\0');
+      for (char& byte : bytes) {
+        byte = static_cast<char>(draw());
+      }
+      write_bytes(logs / f.log, bytes);
+    }
+    const ProcessResult r =
+        run_process(BLOCKMAP_EXE, {"replay", "fault", "--out", "fault_map"}, dir_, minutes(60.0));
+    ASSERT_TRUE(r.exited) << r.err;
+    EXPECT_EQ(r.status, f.status) << r.err;
+    const std::size_t end = r.err.find_last_not_of('\n');
+    const std::string last = r.err.substr(r.err.rfind('\n', end) + 1);
+    if (f.status != 0) {
+      EXPECT_EQ(last.rfind("blockmap: replay: ", 0), 0u) << r.err;
+      EXPECT_NE(last.find(f.says), std::string::npos) << r.err;
+    } else {
+      EXPECT_NE(r.err.find(std::string("warning: fault/") + f.log), std::string::npos) << r.err;
+      EXPECT_NE(r.err.find(f.says), std::string::npos) << r.err;
+    }
+  }
+}
+
 TEST_F(DamagedLogs, PlayOnARandomCanLogWithNobodyReadingKeepsItsPace) {
   fs::copy(dir_ / "log", dir_ / "random_can");
   std::mt19937 draw(1);
