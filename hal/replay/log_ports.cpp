@@ -314,8 +314,8 @@ std::optional<std::uint64_t> ByteLogFileStream::next_record_start(std::uint64_t 
   window_.resize(kWindowBytes);
   while (from < until && from + byte_log::kRecordHeaderBytes <= size_) {
     // The headers of the places before `until`, and no more.
-    const std::size_t wanted =
-        std::min<std::uint64_t>(window_.size(), until - from + byte_log::kRecordHeaderBytes - 1);
+    const auto wanted = static_cast<std::size_t>(
+        std::min<std::uint64_t>(window_.size(), until - from + byte_log::kRecordHeaderBytes - 1));
     const ssize_t got = ::pread(fd_, window_.data(), wanted, static_cast<off_t>(from));
     if (got < static_cast<ssize_t>(byte_log::kRecordHeaderBytes)) {
       break;
