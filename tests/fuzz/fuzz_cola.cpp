@@ -2,18 +2,16 @@
 // scans within capacity with finite ranges, and the same events whole or chunked.
 #include <cmath>
 #include <cstdint>
-#include <cstdlib>
 #include <span>
 
 #include "blockmap/hal/protocol/sick_cola.hpp"
+#include "require.hpp"
 
 namespace {
 
 namespace cola = blockmap::hal::protocol::sick_cola;
 
-void require(bool condition) {
-  if (!condition) std::abort();
-}
+using blockmap::fuzz::require;
 
 std::uint64_t digest_of(const cola::Decoder::Step& step) {
   std::uint64_t digest = (step.rejected ? 1000 + static_cast<std::uint64_t>(step.reason) : 0);

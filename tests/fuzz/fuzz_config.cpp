@@ -3,7 +3,6 @@
 // be a ConfigError naming why; one that is accepted must be valid, and its memory computable
 // at once (the budget check runs before anything is allocated).
 #include <cstdint>
-#include <cstdlib>
 #include <string_view>
 
 #include "blockmap/hal/config/buildings_config.hpp"
@@ -13,14 +12,11 @@
 #include "blockmap/hal/config/planes_config.hpp"
 #include "blockmap/hal/config/robot.hpp"
 #include "blockmap/pipeline/mapper.hpp"
+#include "require.hpp"
 
 namespace {
 
-void require(bool condition) {
-  if (!condition) {
-    std::abort();
-  }
-}
+using blockmap::fuzz::require;
 
 }  // namespace
 

@@ -2,18 +2,16 @@
 // scans within capacity and with finite ranges, and the same events whole or chunked.
 #include <cmath>
 #include <cstdint>
-#include <cstdlib>
 #include <span>
 
 #include "blockmap/hal/protocol/sick_lms2xx.hpp"
+#include "require.hpp"
 
 namespace {
 
 namespace lms = blockmap::hal::protocol::sick_lms2xx;
 
-void require(bool condition) {
-  if (!condition) std::abort();
-}
+using blockmap::fuzz::require;
 
 std::uint64_t digest_of(const lms::Decoder::Step& step) {
   std::uint64_t digest = static_cast<std::uint64_t>(step.event) * 7 + step.offset;

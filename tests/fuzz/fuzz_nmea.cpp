@@ -2,20 +2,16 @@
 // it checks what the decoder promises: progress on every push, decoded values in range, and
 // the same sentences whether the input arrives whole or in chunks.
 #include <cstdint>
-#include <cstdlib>
 #include <span>
 
 #include "blockmap/hal/protocol/nmea.hpp"
+#include "require.hpp"
 
 namespace {
 
 using blockmap::hal::protocol::nmea::Decoder;
 
-void require(bool condition) {
-  if (!condition) {
-    std::abort();
-  }
-}
+using blockmap::fuzz::require;
 
 // Decodes `bytes` in chunks of `chunk` bytes; returns a digest of what was decoded.
 std::uint64_t decode(std::span<const std::uint8_t> bytes, std::size_t chunk) {

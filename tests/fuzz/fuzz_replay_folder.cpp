@@ -12,7 +12,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <span>
@@ -22,6 +21,7 @@
 #include "blockmap/hal/config/config_error.hpp"
 #include "blockmap/hal/config/robot.hpp"
 #include "commands/recorded_run.hpp"
+#include "require.hpp"
 
 namespace {
 
@@ -64,11 +64,7 @@ bool plain(std::string_view name) {
   });
 }
 
-void require(bool condition) {
-  if (!condition) {
-    std::abort();
-  }
-}
+using blockmap::fuzz::require;
 
 }  // namespace
 

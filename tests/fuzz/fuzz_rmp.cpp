@@ -2,23 +2,19 @@
 // input is read as text lines; each line that parses as a frame goes to the decoder, and every
 // frame is also written back and re-parsed, which must give the same frame.
 #include <cstdint>
-#include <cstdlib>
 #include <cstring>
 #include <string_view>
 
 #include "blockmap/hal/protocol/candump.hpp"
 #include "blockmap/hal/protocol/segway_rmp.hpp"
+#include "require.hpp"
 
 namespace {
 
 namespace candump = blockmap::hal::protocol::candump;
 namespace rmp = blockmap::hal::protocol::segway_rmp;
 
-void require(bool condition) {
-  if (!condition) {
-    std::abort();
-  }
-}
+using blockmap::fuzz::require;
 
 bool same_frame(const blockmap::hal::CanFrame& a, const blockmap::hal::CanFrame& b) {
   return a.id == b.id && a.extended == b.extended && a.remote == b.remote && a.error == b.error &&

@@ -2,18 +2,16 @@
 // scans within their capacity and consistent with their echo, and the same replies whole or
 // chunked.
 #include <cstdint>
-#include <cstdlib>
 #include <span>
 
 #include "blockmap/hal/protocol/hokuyo_scip2.hpp"
+#include "require.hpp"
 
 namespace {
 
 using blockmap::hal::protocol::hokuyo_scip2::Decoder;
 
-void require(bool condition) {
-  if (!condition) std::abort();
-}
+using blockmap::fuzz::require;
 
 std::uint64_t decode(std::span<const std::uint8_t> bytes, std::size_t chunk) {
   Decoder decoder;
