@@ -17,6 +17,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <system_error>
 
 #include "blockmap/hal/config/config_error.hpp"
 #include "blockmap/hal/config/robot.hpp"
@@ -31,12 +32,28 @@ using blockmap::msg::ImuSample;
 using blockmap::msg::LaserScan;
 using blockmap::msg::OdometrySample;
 
-const fs::path& folder() {
-  static const fs::path dir = [] {
+// The folder the logs are written into, removed when the fuzzer exits.
+class Folder {
+ public:
+  Folder() {
     std::string pattern = (fs::temp_directory_path() / "fuzz_replay_XXXXXX").string();
-    return fs::path(::mkdtemp(pattern.data()));
-  }();
-  return dir;
+    path_ = ::mkdtemp(pattern.data());
+  }
+  Folder(const Folder&) = delete;
+  Folder& operator=(const Folder&) = delete;
+  ~Folder() {
+    std::error_code ignored;
+    fs::remove_all(path_, ignored);
+  }
+  [[nodiscard]] const fs::path& path() const noexcept { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+const fs::path& folder() {
+  static const Folder dir;
+  return dir.path();
 }
 
 void write(const fs::path& path, std::span<const std::uint8_t> bytes) {
