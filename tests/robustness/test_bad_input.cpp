@@ -52,6 +52,8 @@ void make_inputs(const fs::path& dir) {
   write_file(dir / "unknown_key.toml", "planes = 3\n");
   // A character toml++ 3.3 would take to an unreachable point (marzer/tomlplusplus#295).
   write_file(dir / "non_ascii.toml", "[planes]\n\xcc\xaa = 3\n");
+  // A quote after a value, then a non-ASCII character (found by fuzz_replay_folder).
+  write_file(dir / "quote_non_ascii.toml", "[planes]\ne=0'\xc3\xb9\n");
   write_file(dir / "refine.toml", "[planes]\nrefine_iterations = 1000000000\n");
   write_file(dir / "fine_any.toml", "[planes]\nangle_bin_deg = 0.25\norientations = \"any\"\n");
   write_file(dir / "max_patches.toml", "[planes]\nmax_patches = 2147483000\n");
@@ -149,6 +151,9 @@ const std::vector<Case> kCases = {
     {"config_unknown_top_key", {"buildings", "cloud.ply", "--config", "unknown_key.toml"}, kUsage},
     {"run_config_unknown_table", {"run", "--config", "unknown_table.toml", "--out", "o"}, kUsage},
     {"config_non_ascii_key", {"planes", "cloud.ply", "--config", "non_ascii.toml"}, kUsage},
+    {"config_quote_then_non_ascii",
+     {"planes", "cloud.ply", "--config", "quote_non_ascii.toml"},
+     kUsage},
     {"config_endless_refinement", {"planes", "cloud.ply", "--config", "refine.toml"}, kUsage},
     {"config_fine_any_orientation", {"planes", "cloud.ply", "--config", "fine_any.toml"}, kUsage},
     {"run_config_fine_any_orientation", {"run", "--config", "fine_any.toml", "--out", "o"}, kUsage},
