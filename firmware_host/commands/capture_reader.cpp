@@ -6,7 +6,6 @@
 #include <system_error>
 #include <utility>
 
-#include "blockmap/hal/files.hpp"
 #include "blockmap/hal/protocol/byte_log.hpp"
 
 namespace blockmap::cli {
@@ -22,24 +21,15 @@ constexpr std::size_t kRawPieceBytes = std::size_t{1} << 16;
 
 CaptureReader::CaptureReader(std::string path) : path_(std::move(path)) {}
 
-CaptureReader::~CaptureReader() {
-  if (owned_) {
-    static_cast<void>(std::fclose(file_));
-  }
-}
-
 std::string CaptureReader::open() {
   if (path_ == "-") {
     file_ = stdin;
   } else {
-    if (std::string problem = hal::unreadable_file(path_); !problem.empty()) {
-      return problem;
+    log_.emplace(path_);
+    if (!log_->ok()) {
+      return log_->error();
     }
-    file_ = std::fopen(path_.c_str(), "rb");
-    if (file_ == nullptr) {
-      return path_ + ": " + std::generic_category().message(errno);
-    }
-    owned_ = true;
+    file_ = log_->get();
   }
   buffer_.resize(std::max<std::size_t>(kRawPieceBytes, byte_log::kMaxRecordBytes));
   // The first bytes say which kind of capture it is; a raw one hands them out first.

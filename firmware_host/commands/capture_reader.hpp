@@ -6,18 +6,19 @@
 
 #include <cstdint>
 #include <cstdio>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
 
 #include "blockmap/core/time.hpp"
+#include "blockmap/hal/replay/log_ports.hpp"
 
 namespace blockmap::cli {
 
 class CaptureReader {
  public:
   explicit CaptureReader(std::string path);
-  ~CaptureReader();
   CaptureReader(const CaptureReader&) = delete;
   CaptureReader& operator=(const CaptureReader&) = delete;
 
@@ -41,8 +42,8 @@ class CaptureReader {
   bool next_record(std::span<const std::uint8_t>& bytes, TimestampNs& stamp_ns);
 
   std::string path_;
+  std::optional<hal::replay::LogFile> log_;  // a file; standard input is not one
   std::FILE* file_ = nullptr;
-  bool owned_ = false;
   bool timed_ = false;
   bool ended_ = false;
   std::vector<std::uint8_t> buffer_;  // one read, or one record: at most a record's size

@@ -215,22 +215,22 @@ ByteLogFileStream::ByteLogFileStream(const std::string& path) : file_(path) {
   fd_ = ::fileno(file_.get());
   struct stat status {};
   std::array<std::uint8_t, 8> magic{};
-  if (::fstat(fd_, &status) != 0 || !S_ISREG(status.st_mode) ||
-      ::pread(fd_, magic.data(), magic.size(), 0) != static_cast<ssize_t>(magic.size())) {
-    error_ = path + ": not a byte log (it does not start with BMBYTES1)";
-    return;
-  }
-  size_ = static_cast<std::uint64_t>(status.st_size);
+  const bool read =
+      ::fstat(fd_, &status) == 0 && S_ISREG(status.st_mode) &&
+      ::pread(fd_, magic.data(), magic.size(), 0) == static_cast<ssize_t>(magic.size());
+  size_ = read ? static_cast<std::uint64_t>(status.st_size) : 0;
   offset_ = magic.size();
   constexpr std::size_t kReadAheadBytes = 1 << 16;
   read_ahead_.resize(kReadAheadBytes);
   record_.reserve(4096);
   // A damaged magic in front of records that read well loses nothing else.
-  if (!protocol::byte_log::has_magic(magic)) {
-    if (!record_starts_at(offset_, std::nullopt)) {
-      error_ = path + ": not a byte log (it does not start with BMBYTES1)";
-      return;
-    }
+  const bool damaged_magic =
+      read && !protocol::byte_log::has_magic(magic) && record_starts_at(offset_, std::nullopt);
+  if (!read || (!protocol::byte_log::has_magic(magic) && !damaged_magic)) {
+    error_ = path + ": not a byte log (it does not start with BMBYTES1)";
+    return;
+  }
+  if (damaged_magic) {
     skipped_places_ = 1;
     skipped_bytes_ = magic.size();
     first_skip_ = protocol::byte_log::ParseError::kBadMagic;
